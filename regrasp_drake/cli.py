@@ -1,0 +1,104 @@
+"""The command line: `regrasp-drake <command> …`.
+
+Every error from bad input is one line on stderr and exit status 2.
+"""
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from regrasp_drake.errors import InputError
+
+
+def _add_object_args(p: argparse.ArgumentParser) -> None:
+    group = p.add_mutually_exclusive_group(required=True)
+    group.add_argument("--object", metavar="NAME",
+                       help="a catalogue object (see `regrasp-drake objects`)")
+    group.add_argument("--object-file", metavar="F", type=Path,
+                       help="a YAML object file in the catalogue's format")
+
+
+def _add_scenario_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--scenario", metavar="F", type=Path,
+                   help="a scenario YAML file (default: the shipped defaults)")
+
+
+def _cmd_objects(args) -> int:
+    from regrasp_drake.world.objects import load_catalogue, load_object_file
+    specs = (load_object_file(args.object_file) if args.object_file
+             else list(load_catalogue().values()))
+    rows = [{"name": s.name, "set": s.set, "mass_kg": round(s.mass, 5),
+             "density": s.density, "h_cm": s.h_cm, "r_cm": s.r_cm,
+             "v_conv": s.v_conv} for s in specs]
+    if args.json:
+        print(json.dumps(rows, indent=1))
+        return 0
+    print(f"{'name':<24} {'set':<6} {'mass kg':>8} {'density':>8} "
+          f"{'h_cm m':>8} {'r_cm m':>8} {'v_conv':>6}")
+    for r in rows:
+        print(f"{r['name']:<24} {r['set']:<6} {r['mass_kg']:>8.4f} "
+              f"{r['density']:>8.0f} {r['h_cm']:>8.3f} {r['r_cm']:>8.3f} "
+              f"{r['v_conv']:>6d}")
+    counts = {}
+    for r in rows:
+        counts[r["set"]] = counts.get(r["set"], 0) + 1
+    print(", ".join(f"{n} {k}" for k, n in counts.items()))
+    return 0
+
+
+def _cmd_catch(args) -> int:
+    from regrasp_drake.station.scenario import check_catch_parameters
+    check_catch_parameters(args.h_catch, args.h_down, prefix="--")
+    from regrasp_drake.throw_catch import catch_once
+    result = catch_once(
+        scenario_path=args.scenario, object_name=args.object,
+        object_file=args.object_file, h_catch=args.h_catch, h_down=args.h_down,
+        html=args.html, plot=args.plot)
+    summary = result.summary()
+    print(json.dumps(summary, indent=1))
+    if args.json:
+        args.json.write_text(json.dumps(summary, indent=1) + "\n")
+    return 0
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="regrasp-drake",
+        description="Regrasp planning through throwing and catching (Drake).")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("objects", help="list the object catalogue")
+    p.add_argument("--json", action="store_true", help="machine-readable list")
+    p.add_argument("--object-file", metavar="F", type=Path,
+                   help="list the objects of this file instead")
+    p.set_defaults(func=_cmd_objects)
+
+    p = sub.add_parser("catch", help="one throw and one catch attempt")
+    _add_object_args(p)
+    _add_scenario_arg(p)
+    p.add_argument("--h-catch", type=float, required=True, metavar="X",
+                   help="height above the palm at which the fingers start to "
+                        "close, m (0 … 0.40)")
+    p.add_argument("--h-down", type=float, required=True, metavar="Y",
+                   help="how far the hand is lowered, m (-0.14 … 0)")
+    p.add_argument("--html", type=Path, metavar="F",
+                   help="save the Meshcat replay as one HTML file")
+    p.add_argument("--json", type=Path, metavar="F", help="write the result")
+    p.add_argument("--plot", type=Path, metavar="F",
+                   help="PNG of the sensors and the object's flight")
+    p.set_defaults(func=_cmd_catch)
+    return parser
+
+
+def main(argv=None) -> int:
+    args = make_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except InputError as e:
+        print(f"regrasp-drake {args.command}: error: {e}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

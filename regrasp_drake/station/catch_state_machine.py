@@ -1,0 +1,254 @@
+"""The catch state machine of the paper's Fig. 9, as a LeafSystem.
+
+Phases, in order:
+  SETTLE  the fingers close on the object lying in the palm;
+  THROW   the arm tracks the fixed throw trajectory; the fingers open at the
+          release time;
+  MOVE    the arm moves to the grasp position (or, when only watching, to a
+          park pose out of the flight's way);
+  WAIT    the hand waits, palm up, until an approach sensor (IR 4-13) sees
+          the object closer than h_catch;
+  LOWER   the fingers close at their maximum speed while the hand is lowered
+          by |h_down|; lowering stops as soon as a palm sensor (IR 1-3) reads
+          below the stop level (Fig. 9 line 13);
+  RETURN  the hand goes back up to the grasp position;
+  HOLD    the hand holds the object there.
+
+The arm is commanded in joint space: every phase is a segment from q_a to q_b
+with a quintic time law (zero end velocity and acceleration), except the
+throw, which follows a C2 cubic spline through the scenario's knots. The
+grasp and lowered joint angles are solved by inverse kinematics once, when
+the phase that needs them starts. Transitions run in a periodic discrete
+update at the sensors' rate; the outputs are computed from the discrete state
+and time, and cached.
+"""
+
+import enum
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
+from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
+from pydrake.trajectories import PiecewisePolynomial
+
+from regrasp_drake.planning.ik import ArmIk
+
+
+class Phase(enum.IntEnum):
+    SETTLE = 0
+    THROW = 1
+    MOVE = 2
+    WAIT = 3
+    LOWER = 4
+    RETURN = 5
+    HOLD = 6
+
+
+# Layout of the discrete state vector.
+_PHASE, _T0, _T, _T_CLOSE, _T_OPEN, _H_DOWN = range(6)
+_QA = slice(6, 12)
+_QB = slice(12, 18)
+_QGRASP = slice(18, 24)
+_SIZE = 24
+
+
+def _quintic(tau):
+    """Time law s(τ), s'(τ), s''(τ) with zero end velocity and acceleration."""
+    tau = min(max(tau, 0.0), 1.0)
+    s = tau**3 * (10 - 15 * tau + 6 * tau**2)
+    ds = 30 * tau**2 * (1 - tau) ** 2
+    dds = 60 * tau * (1 - tau) * (1 - 2 * tau)
+    return s, ds, dds
+
+
+class CatchStateMachine(LeafSystem):
+    """Inputs: `ir_levels` (13 readings, IR 1-3 palm then IR 4-13 approach),
+    `catch_parameters` (h_catch, h_down in m), `X_WG` (abstract RigidTransform:
+    the palm frame's grasp pose), `arm_state` (q, v of the arm).
+    Outputs: `arm_desired_state` (q, v), `arm_desired_acceleration`,
+    `hand_desired_state` (q, v of the 10 finger joints), `phase`.
+    """
+
+    def __init__(self, scenario, ik: ArmIk, hand_open, hand_closed,
+                 finger_speed_rad_per_s: float, park_q=None):
+        """`park_q`, when given, makes this a watching throw: after the
+        release the arm goes to `park_q` and never tries to catch."""
+        LeafSystem.__init__(self)
+        self._ik = ik
+        self._throw = scenario.throw
+        self._catch = scenario.catch
+        self._levels = scenario.sensors.levels
+        self._palm_range = scenario.sensors.palm_range_m
+        self._approach_range = scenario.sensors.approach_range_m
+        self._open = np.asarray(hand_open, float)
+        self._closed = np.asarray(hand_closed, float)
+        self._hold = self._open + scenario.throw.hold_closure * (
+            self._closed - self._open)
+        self._speed = finger_speed_rad_per_s
+        self._park_q = None if park_q is None else np.asarray(park_q, float)
+        t = scenario.throw
+        self._t_throw = t.settle_s
+        self._t_release = t.settle_s + t.release_time_s
+        self._t_throw_end = t.settle_s + t.knot_times_s[-1]
+        knots = np.array(t.knot_q_rad).T
+        self._spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(
+            t.knot_times_s, knots, np.zeros(6), np.zeros(6))
+        self._spline_v = self._spline.derivative(1)
+        self._spline_a = self._spline.derivative(2)
+        self._q_start = knots[:, 0]
+        n_hand = len(self._open)
+
+        self._ir = self.DeclareVectorInputPort("ir_levels", 13)
+        self._params = self.DeclareVectorInputPort("catch_parameters", 2)
+        self._X_WG = self.DeclareAbstractInputPort(
+            "X_WG", AbstractValue.Make(RigidTransform()))
+        self._arm_state = self.DeclareVectorInputPort("arm_state", 12)
+
+        x0 = np.zeros(_SIZE)
+        x0[_PHASE] = Phase.SETTLE
+        x0[_T_CLOSE] = 0.0  # the fingers close on the object from the start
+        x0[_T_OPEN] = self._t_release
+        x0[_QA] = x0[_QB] = self._q_start
+        x0[_T] = 1.0
+        self._state = self.DeclareDiscreteState(x0)
+        self.DeclarePeriodicDiscreteUpdateEvent(
+            scenario.sensors.period_s, 0.0, self._update)
+
+        state_ticket = [self.xd_ticket(), self.time_ticket()]
+        self.DeclareVectorOutputPort(
+            "arm_desired_state", 12, self._calc_arm_state,
+            prerequisites_of_calc=set(state_ticket))
+        self.DeclareVectorOutputPort(
+            "arm_desired_acceleration", 6, self._calc_arm_acceleration,
+            prerequisites_of_calc=set(state_ticket))
+        self.DeclareVectorOutputPort(
+            "hand_desired_state", 2 * n_hand, self._calc_hand_state,
+            prerequisites_of_calc=set(state_ticket))
+        self.DeclareVectorOutputPort(
+            "phase", 1, self._calc_phase,
+            prerequisites_of_calc={self.xd_ticket()})
+
+    # ---- arm reference -------------------------------------------------
+    def _arm_reference(self, context):
+        x = context.get_discrete_state(self._state).value()
+        t = context.get_time()
+        if x[_PHASE] == Phase.THROW:
+            tau = min(t - self._t_throw, self._throw.knot_times_s[-1])
+            return (self._spline.value(tau).ravel(),
+                    self._spline_v.value(tau).ravel(),
+                    self._spline_a.value(tau).ravel())
+        T = x[_T]
+        s, ds, dds = _quintic((t - x[_T0]) / T)
+        dq = x[_QB] - x[_QA]
+        return x[_QA] + s * dq, ds / T * dq, dds / T**2 * dq
+
+    def _calc_arm_state(self, context, output: BasicVector):
+        q, v, _ = self._arm_reference(context)
+        output.SetFromVector(np.concatenate([q, v]))
+
+    def _calc_arm_acceleration(self, context, output: BasicVector):
+        output.SetFromVector(self._arm_reference(context)[2])
+
+    # ---- finger reference ----------------------------------------------
+    def _calc_hand_state(self, context, output: BasicVector):
+        """Fingers ramp at their maximum speed toward the hold posture (from
+        t_close while settling and throwing), open (from the release), or
+        closed (from t_close once catching)."""
+        x = context.get_discrete_state(self._state).value()
+        t = context.get_time()
+        if x[_PHASE] <= Phase.THROW and t < self._t_release:
+            q, v = self._ramp(self._open, self._hold, t - x[_T_CLOSE])
+        elif x[_PHASE] < Phase.LOWER:
+            q, v = self._ramp(self._hold, self._open, t - self._t_release)
+        else:
+            q, v = self._ramp(self._open, self._closed, t - x[_T_CLOSE])
+        output.SetFromVector(np.concatenate([q, v]))
+
+    def _ramp(self, q_from, q_to, elapsed):
+        delta = q_to - q_from
+        travel = np.minimum(np.abs(delta), self._speed * max(elapsed, 0.0))
+        moving = np.abs(delta) > travel
+        q = q_from + np.sign(delta) * travel
+        v = np.where(moving, np.sign(delta) * self._speed, 0.0)
+        return q, v
+
+    def _calc_phase(self, context, output: BasicVector):
+        output.SetAtIndex(0, context.get_discrete_state(self._state)[_PHASE])
+
+    # ---- transitions ---------------------------------------------------
+    def _update(self, context, discrete_state):
+        x = context.get_discrete_state(self._state).value().copy()
+        t = context.get_time()
+        phase = Phase(int(x[_PHASE]))
+        segment_done = t >= x[_T0] + x[_T]
+        if phase == Phase.SETTLE and t >= self._t_throw:
+            x[_PHASE] = Phase.THROW
+        elif phase == Phase.THROW and t >= self._t_throw_end:
+            q_end = self._spline.value(self._throw.knot_times_s[-1]).ravel()
+            if self._park_q is not None:
+                q_target = self._park_q
+            else:
+                X_WG = self._X_WG.Eval(context)
+                result = self._ik.solve(X_WG, q_end)
+                if not result.success:
+                    return EventStatus.Failed(
+                        self, f"grasp pose unreachable: {result.reason()}")
+                q_target = result.q
+            x[_QGRASP] = q_target
+            self._start_segment(x, t, q_end, q_target,
+                                self._catch.move_to_grasp_s, Phase.MOVE)
+        elif (phase == Phase.MOVE and segment_done
+              and self._park_q is None and self._at_grasp(context, x)):
+            x[_PHASE] = Phase.WAIT
+        elif phase == Phase.WAIT:
+            h_catch, h_down = self._params.Eval(context)
+            if self._approach_distance(context) < h_catch:
+                x[_T_CLOSE] = t
+                x[_H_DOWN] = h_down
+                X_WG = self._X_WG.Eval(context)
+                X_WL = RigidTransform(X_WG.rotation(), X_WG.translation()
+                                      + [0.0, 0.0, -abs(h_down)])
+                result = self._ik.solve(X_WL, x[_QGRASP])
+                if not result.success:
+                    return EventStatus.Failed(
+                        self, f"lowered pose unreachable: {result.reason()}")
+                duration = max(abs(h_down) / self._catch.lower_speed_m_per_s,
+                               self._throw_period_floor())
+                self._start_segment(x, t, x[_QGRASP], result.q, duration,
+                                    Phase.LOWER)
+        elif phase == Phase.LOWER:
+            stop = self._palm_level(context) < self._catch.palm_stop_level
+            if segment_done or stop:
+                q_now, _, _ = self._arm_reference(context)
+                self._start_segment(x, t, q_now, x[_QGRASP],
+                                    self._catch.return_s, Phase.RETURN)
+        elif phase == Phase.RETURN and segment_done:
+            x[_PHASE] = Phase.HOLD
+        discrete_state.set_value(self._state, x)
+        return EventStatus.Succeeded()
+
+    def _throw_period_floor(self):
+        # A zero-length lowering (h_down = 0) still lasts one update.
+        return 1e-3
+
+    @staticmethod
+    def _start_segment(x, t, q_a, q_b, duration, phase):
+        x[_PHASE] = phase
+        x[_T0] = t
+        x[_T] = duration
+        x[_QA] = q_a
+        x[_QB] = q_b
+
+    def _at_grasp(self, context, x):
+        q = self._arm_state.Eval(context)[:6]
+        X_WP = self._ik.palm_pose(q)
+        X_WG = self._ik.palm_pose(x[_QGRASP])
+        error = np.linalg.norm(X_WP.translation() - X_WG.translation())
+        return error < self._catch.grasp_tolerance_m
+
+    def _approach_distance(self, context):
+        levels = self._ir.Eval(context)[3:]
+        return float(np.min(levels)) / self._levels * self._approach_range
+
+    def _palm_level(self, context):
+        return float(np.min(self._ir.Eval(context)[:3]))

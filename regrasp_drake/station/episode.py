@@ -1,0 +1,107 @@
+"""One episode: build the station, throw, (watch or catch), read the outcome."""
+
+import dataclasses as dc
+import time
+
+import numpy as np
+from pydrake.math import RigidTransform
+
+from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station.grasp_monitor import GraspMonitor, Outcome
+from regrasp_drake.station.scenario import Scenario
+from regrasp_drake.station.station import build_station, initialize
+from regrasp_drake.world.objects import ObjectSpec
+
+
+@dc.dataclass
+class Logs:
+    """Signals sampled at the sensors' rate."""
+    t: np.ndarray           # [s]
+    object_state: np.ndarray  # (13, n): quaternion wxyz, p_WO, w_WO, v_WO
+    ir: np.ndarray          # (13, n) levels
+    bumper: np.ndarray      # (n,)
+    phase: np.ndarray       # (n,)
+    actuation: np.ndarray   # (16, n) net actuation, [N·m]
+    arm_state: np.ndarray   # (12, n)
+    params: np.ndarray      # (2, n) h_catch, h_down
+
+
+@dc.dataclass
+class EpisodeResult:
+    object: str
+    outcome: str            # caught | dropped | timeout | landed | failed
+    h_catch: float | None
+    h_down: float | None
+    sim_time_s: float
+    wall_s: float
+    build_s: float
+    catch_time_s: float | None  # when the grasp was recognized, [s]
+    message: str
+    logs: Logs | None
+
+    @property
+    def caught(self) -> bool:
+        return self.outcome == "caught"
+
+    def summary(self) -> dict:
+        return {
+            "object": self.object, "caught": self.caught,
+            "outcome": self.outcome, "h_catch": self.h_catch,
+            "h_down": self.h_down, "sim_time_s": round(self.sim_time_s, 4),
+            "wall_s": round(self.wall_s, 3),
+            "catch_time_s": self.catch_time_s, "message": self.message,
+        }
+
+
+def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
+                X_WG: RigidTransform | None, catch_parameters=None,
+                mlp_features=None, meshcat=None) -> EpisodeResult:
+    """Throws `obj` and, unless X_WG is None (a watching throw), catches it."""
+    t0 = time.perf_counter()
+    station = build_station(scenario, obj, ik=ik, X_WG=X_WG,
+                            catch_parameters=catch_parameters,
+                            mlp_features=mlp_features, meshcat=meshcat)
+    if meshcat is not None:
+        meshcat.StartRecording(set_visualizations_while_recording=False)
+    simulator = initialize(station, scenario)
+    build_s = time.perf_counter() - t0
+    message = ""
+    try:
+        simulator.AdvanceTo(scenario.monitor.max_time_s + 1.0)
+    except Exception as e:  # a failed solve or an unreachable pose
+        message = str(e).strip().splitlines()[0] if str(e).strip() else repr(e)
+    wall_s = time.perf_counter() - t0
+    if meshcat is not None:
+        meshcat.StopRecording()
+        meshcat.PublishRecording()
+    context = simulator.get_context()
+    monitor_state = station.monitor.GetOutputPort("monitor_state").Eval(
+        station.monitor.GetMyContextFromRoot(context))
+    outcome = "failed" if message else GraspMonitor.outcome(
+        monitor_state).name.lower()
+    grasp_t = GraspMonitor.grasp_time(monitor_state)
+    logs = _read_logs(station, context)
+    h = logs.params[:, -1] if logs.params.shape[1] else (None, None)
+    return EpisodeResult(
+        object=obj.name, outcome=outcome,
+        h_catch=None if X_WG is None else float(h[0]),
+        h_down=None if X_WG is None else float(h[1]),
+        sim_time_s=context.get_time(), wall_s=wall_s, build_s=build_s,
+        catch_time_s=grasp_t if grasp_t >= 0 else None, message=message,
+        logs=logs)
+
+
+def _read_logs(station, context) -> Logs:
+    def log(name):
+        sink = station.loggers[name]
+        return sink.FindLog(context)
+    obj = log("object")
+    return Logs(t=obj.sample_times().copy(), object_state=obj.data().copy(),
+                ir=log("ir").data().copy(), bumper=log("bumper").data()[0].copy(),
+                phase=log("phase").data()[0].copy(),
+                actuation=log("actuation").data().copy(),
+                arm_state=log("arm").data().copy(),
+                params=log("params").data().copy())
+
+
+__all__ = ["EpisodeResult", "Logs", "Outcome", "run_episode"]

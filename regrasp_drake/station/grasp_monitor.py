@@ -1,0 +1,116 @@
+"""The grasp monitor: recognizes a grasp from the sensors and ends the episode.
+
+Paper §V.B: the object is grasped when all palm infrared sensors read below a
+level for a sustained window, or the tactile bumper reads 1 for longer than a
+window. The episode's outcome:
+  caught   a grasp was recognized, and the object is still held (grasp
+           recognized again) `hold_s` after the hand is back at the grasp
+           position;
+  dropped  the object fell below the palm, neared the ground, or was not held
+           at the end of the hold;
+  timeout  nothing decided by `max_time_s`;
+  landed   (watching throws only) the object neared the ground.
+The simulator stops as soon as the outcome is known: the periodic update
+returns EventStatus.ReachedTermination.
+"""
+
+import enum
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
+from pydrake.systems.framework import EventStatus, LeafSystem
+
+from regrasp_drake.station.catch_state_machine import Phase
+
+
+class Outcome(enum.IntEnum):
+    RUNNING = 0
+    CAUGHT = 1
+    DROPPED = 2
+    TIMEOUT = 3
+    LANDED = 4
+
+
+# Discrete state layout.
+_OUTCOME, _IR_SINCE, _BUMPER_SINCE, _GRASP_T, _HOLD_T = range(5)
+
+
+class GraspMonitor(LeafSystem):
+    """Inputs: `ir_levels` (13), `bumper` (1), `phase` (1), `body_poses`
+    (the plant's body poses). Output: `outcome` (1) and `grasped` (1: the
+    grasp is recognized now)."""
+
+    def __init__(self, scenario, object_body_index, palm_body_index,
+                 X_BP_palm, object_clearance_m: float, watching: bool):
+        """`X_BP_palm`: the palm surface frame P in the palm body B;
+        `object_clearance_m`: the object's largest distance from its frame
+        origin (it is near the ground when its origin is this high)."""
+        LeafSystem.__init__(self)
+        m = scenario.monitor
+        self._m = m
+        self._object = int(object_body_index)
+        self._palm = int(palm_body_index)
+        self._X_BP = X_BP_palm
+        self._ground_z = object_clearance_m + m.ground_clearance_m
+        self._watching = watching
+        self._ir = self.DeclareVectorInputPort("ir_levels", 13)
+        self._bumper = self.DeclareVectorInputPort("bumper", 1)
+        self._phase = self.DeclareVectorInputPort("phase", 1)
+        self._poses = self.DeclareAbstractInputPort(
+            "body_poses", AbstractValue.Make([RigidTransform()]))
+        x0 = np.array([Outcome.RUNNING, -1.0, -1.0, -1.0, -1.0])
+        self._state = self.DeclareDiscreteState(x0)
+        self.DeclarePeriodicDiscreteUpdateEvent(
+            scenario.sensors.period_s, 0.0, self._update)
+        self.DeclareStateOutputPort("monitor_state", self._state)
+
+    def _update(self, context, discrete_state):
+        x = context.get_discrete_state(self._state).value().copy()
+        t = context.get_time()
+        m = self._m
+        phase = int(self._phase.Eval(context)[0])
+        poses = self._poses.Eval(context)
+        p_WO = poses[self._object].translation()
+        X_WP = poses[self._palm] @ self._X_BP
+
+        ir_grasp = bool(np.all(self._ir.Eval(context)[:3] < m.palm_grasp_level))
+        bumper = self._bumper.Eval(context)[0] > 0.5
+        x[_IR_SINCE] = (x[_IR_SINCE] if x[_IR_SINCE] >= 0 else t) if ir_grasp else -1
+        x[_BUMPER_SINCE] = ((x[_BUMPER_SINCE] if x[_BUMPER_SINCE] >= 0 else t)
+                            if bumper else -1)
+        grasped = ((ir_grasp and t - x[_IR_SINCE] >= m.ir_window_s)
+                   or (bumper and t - x[_BUMPER_SINCE] >= m.bumper_window_s))
+        if grasped and phase >= Phase.LOWER and x[_GRASP_T] < 0:
+            x[_GRASP_T] = t
+        if phase == Phase.HOLD and x[_HOLD_T] < 0:
+            x[_HOLD_T] = t
+
+        outcome = Outcome.RUNNING
+        near_ground = p_WO[2] < self._ground_z
+        if self._watching:
+            if near_ground:
+                outcome = Outcome.LANDED
+        elif near_ground:
+            outcome = Outcome.DROPPED
+        elif phase >= Phase.LOWER and (
+                X_WP.inverse() @ p_WO)[2] < -m.below_palm_m:
+            outcome = Outcome.DROPPED
+        elif x[_HOLD_T] >= 0 and t - x[_HOLD_T] >= m.hold_s:
+            held = x[_GRASP_T] >= 0 and (ir_grasp or bumper)
+            outcome = Outcome.CAUGHT if held else Outcome.DROPPED
+        if outcome == Outcome.RUNNING and t >= m.max_time_s:
+            outcome = Outcome.TIMEOUT
+        x[_OUTCOME] = outcome
+        discrete_state.set_value(self._state, x)
+        if outcome != Outcome.RUNNING:
+            return EventStatus.ReachedTermination(self, outcome.name.lower())
+        return EventStatus.Succeeded()
+
+    @staticmethod
+    def outcome(monitor_state) -> Outcome:
+        return Outcome(int(monitor_state[_OUTCOME]))
+
+    @staticmethod
+    def grasp_time(monitor_state) -> float:
+        return float(monitor_state[_GRASP_T])

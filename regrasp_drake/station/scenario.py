@@ -1,0 +1,233 @@
+"""The scenario: every physical constant of a throw-and-catch episode, with units.
+
+One typed dataclass tree, loaded from YAML with pydrake's `yaml_load_typed`
+(unknown keys are refused by the loader), then range-checked field by field.
+The defaults below are the shipped scenario; `scenarios/default.yaml` spells
+them out.
+"""
+
+import dataclasses as dc
+import math
+from pathlib import Path
+
+from pydrake.common.yaml import yaml_load_typed
+
+from regrasp_drake.errors import InputError, field_error
+
+
+@dc.dataclass
+class ContactConfig:
+    # Discrete contact solver: "sap" or "similar" or "lagged" (TAMSI fails to
+    # converge on throw impacts, see shared/reference/hand-and-drake.md).
+    discrete_contact_approximation: str = "sap"
+    # Coulomb friction coefficient (static = dynamic) of every surface, [-].
+    friction_coefficient: float = 0.9
+    # Point-contact stiffness of the object's surfaces, [N/m].
+    point_stiffness_N_per_m: float = 20000.0
+    # Hunt-Crossley dissipation of the object's surfaces, [s/m].
+    hunt_crossley_dissipation_s_per_m: float = 10.0
+
+
+@dc.dataclass
+class ArmControlConfig:
+    # Inverse-dynamics controller gains, per arm joint: kp [1/s²], ki [1/s³],
+    # kd [1/s] (they multiply joint errors in rad before the mass matrix).
+    kp: list[float] = dc.field(default_factory=lambda: [900.0] * 6)
+    ki: list[float] = dc.field(default_factory=lambda: [0.0] * 6)
+    kd: list[float] = dc.field(default_factory=lambda: [60.0] * 6)
+
+
+@dc.dataclass
+class ThrowConfig:
+    # Time the object is left to settle in the closed hand before the swing, [s].
+    settle_s: float = 0.3
+    # Arm joint knots of the throw (rad), at times `knot_times_s` (s) counted
+    # from the end of the settling; a C2 cubic spline with zero end
+    # velocities joins them. The first knot is the arm's initial pose.
+    knot_times_s: list[float] = dc.field(
+        default_factory=lambda: [0.0, 0.35, 0.6])
+    knot_q_rad: list[list[float]] = dc.field(
+        default_factory=lambda: [
+            [0.0, 0.6, 2.2, 0.0, -0.75, 0.0],
+            [0.0, 0.6, 2.9, 0.0, -1.35, 0.0],
+            [0.0, 0.6, 3.1, 0.0, -1.5, 0.0],
+        ])
+    # Time, counted like the knots, at which the fingers open, [s].
+    release_time_s: float = 0.25
+    # Hand joint positions while the object is held for the throw, as a
+    # fraction of the closed posture, [-].
+    hold_closure: float = 1.0
+    # On a watching throw the arm parks out of the flight's way: the throw's
+    # last knot with joint 1 turned by this much, [rad].
+    park_joint1_offset_rad: float = 1.3
+
+
+@dc.dataclass
+class SensorConfig:
+    # Sampling period of the infrared sensors and the tactile bumper, [s].
+    period_s: float = 0.004
+    # Range of the palm infrared sensors IR 1-3, [m] (paper §V.B: 10 cm).
+    palm_range_m: float = 0.10
+    # Range of the approach infrared sensors IR 4-13, [m] (>= the largest
+    # h_catch of the parameter space, 0.40 m).
+    approach_range_m: float = 0.50
+    # Quantization levels over a sensor's range, [-] (paper: 1000).
+    levels: int = 1000
+
+
+@dc.dataclass
+class CatchConfig:
+    # Duration of the arm's move from the release to the grasp position, [s].
+    move_to_grasp_s: float = 0.35
+    # The hand is at the grasp position when its wrist is this close, [m]
+    # (paper Fig. 9: 0.001 m).
+    grasp_tolerance_m: float = 0.001
+    # Speed at which the hand is lowered by |h_down|, [m/s].
+    lower_speed_m_per_s: float = 1.0
+    # Lowering stops when a palm infrared sensor reads below this, [level]
+    # (paper Fig. 9: 600).
+    palm_stop_level: int = 600
+    # Duration of the return from the lowered to the grasp position, [s].
+    return_s: float = 0.3
+    # Where (h_catch, h_down) come from: "fixed" (the two values below) or
+    # "mlp" (the network in `weights`).
+    parameter_source: str = "fixed"
+    # Fixed catch parameters, [m].
+    h_catch_m: float = 0.2
+    h_down_m: float = -0.05
+    # Weights file of the MLP, relative to the repository's models/ directory
+    # or absolute.
+    weights: str = "catch_mlp.pt"
+
+
+@dc.dataclass
+class MonitorConfig:
+    # A grasp is recognized when every palm infrared sensor reads below this
+    # level for `ir_window_s`, or the bumper reads 1 for `bumper_window_s`
+    # (paper §V.B).
+    palm_grasp_level: int = 700
+    ir_window_s: float = 0.15
+    bumper_window_s: float = 0.15
+    # After the hand is back at the grasp position, the object must still be
+    # held this long for the catch to count, [s].
+    hold_s: float = 0.4
+    # The object is dropped when its centre falls this far below the palm
+    # surface, [m], or comes within `ground_clearance_m` of the ground.
+    below_palm_m: float = 0.08
+    ground_clearance_m: float = 0.05
+    # The episode ends at this simulated time whatever happens, [s].
+    max_time_s: float = 4.0
+
+
+@dc.dataclass
+class Scenario:
+    # Time step of the discrete MultibodyPlant, [s].
+    time_step_s: float = 0.001
+    # Gravity's magnitude, pointing along -z, [m/s²].
+    gravity_m_per_s2: float = 9.81
+    contact: ContactConfig = dc.field(default_factory=ContactConfig)
+    arm: ArmControlConfig = dc.field(default_factory=ArmControlConfig)
+    throw: ThrowConfig = dc.field(default_factory=ThrowConfig)
+    sensors: SensorConfig = dc.field(default_factory=SensorConfig)
+    catch: CatchConfig = dc.field(default_factory=CatchConfig)
+    monitor: MonitorConfig = dc.field(default_factory=MonitorConfig)
+
+
+_APPROXIMATIONS = ("sap", "similar", "lagged")
+_SOURCES = ("fixed", "mlp")
+
+
+def _in_range(field, value, lo, hi, unit=""):
+    if not (isinstance(value, (int, float)) and math.isfinite(value)
+            and lo <= value <= hi):
+        raise field_error(field, value, f"a number in [{lo}, {hi}]{unit}")
+
+
+def validate(s: Scenario) -> Scenario:
+    """Checks every field's range; returns `s` or raises InputError."""
+    _in_range("time_step_s", s.time_step_s, 1e-5, 5e-3, " s")
+    _in_range("gravity_m_per_s2", s.gravity_m_per_s2, 0.0, 30.0, " m/s²")
+    c = s.contact
+    if c.discrete_contact_approximation not in _APPROXIMATIONS:
+        raise field_error("contact.discrete_contact_approximation",
+                          c.discrete_contact_approximation,
+                          f"one of {_APPROXIMATIONS}")
+    _in_range("contact.friction_coefficient", c.friction_coefficient, 0.0, 5.0)
+    _in_range("contact.point_stiffness_N_per_m", c.point_stiffness_N_per_m,
+              1.0, 1e8, " N/m")
+    _in_range("contact.hunt_crossley_dissipation_s_per_m",
+              c.hunt_crossley_dissipation_s_per_m, 0.0, 1e3, " s/m")
+    for name in ("kp", "ki", "kd"):
+        gains = getattr(s.arm, name)
+        if len(gains) != 6:
+            raise field_error(f"arm.{name}", gains, "6 gains, one per arm joint")
+        for i, g in enumerate(gains):
+            _in_range(f"arm.{name}[{i}]", g, 0.0, 1e6)
+    t = s.throw
+    _in_range("throw.settle_s", t.settle_s, 0.0, 5.0, " s")
+    if len(t.knot_times_s) < 2 or len(t.knot_times_s) != len(t.knot_q_rad):
+        raise field_error("throw.knot_times_s", t.knot_times_s,
+                          "at least 2 times, one per entry of throw.knot_q_rad")
+    if t.knot_times_s[0] != 0.0 or any(
+            b <= a for a, b in zip(t.knot_times_s, t.knot_times_s[1:])):
+        raise field_error("throw.knot_times_s", t.knot_times_s,
+                          "increasing times starting at 0")
+    for i, q in enumerate(t.knot_q_rad):
+        if len(q) != 6:
+            raise field_error(f"throw.knot_q_rad[{i}]", q, "6 joint angles")
+    _in_range("throw.release_time_s", t.release_time_s, 0.0,
+              t.knot_times_s[-1], " s")
+    _in_range("throw.hold_closure", t.hold_closure, 0.0, 1.0)
+    _in_range("throw.park_joint1_offset_rad", t.park_joint1_offset_rad,
+              -math.pi, math.pi, " rad")
+    n = s.sensors
+    _in_range("sensors.period_s", n.period_s, s.time_step_s, 0.05, " s")
+    _in_range("sensors.palm_range_m", n.palm_range_m, 0.01, 1.0, " m")
+    _in_range("sensors.approach_range_m", n.approach_range_m, 0.40, 2.0, " m")
+    _in_range("sensors.levels", n.levels, 2, 1e6)
+    k = s.catch
+    _in_range("catch.move_to_grasp_s", k.move_to_grasp_s, 0.05, 3.0, " s")
+    _in_range("catch.grasp_tolerance_m", k.grasp_tolerance_m, 1e-5, 0.05, " m")
+    _in_range("catch.lower_speed_m_per_s", k.lower_speed_m_per_s, 0.01, 5.0,
+              " m/s")
+    _in_range("catch.palm_stop_level", k.palm_stop_level, 0, n.levels)
+    _in_range("catch.return_s", k.return_s, 0.05, 3.0, " s")
+    if k.parameter_source not in _SOURCES:
+        raise field_error("catch.parameter_source", k.parameter_source,
+                          f"one of {_SOURCES}")
+    check_catch_parameters(k.h_catch_m, k.h_down_m, prefix="catch.")
+    m = s.monitor
+    _in_range("monitor.palm_grasp_level", m.palm_grasp_level, 0, n.levels)
+    _in_range("monitor.ir_window_s", m.ir_window_s, 0.0, 2.0, " s")
+    _in_range("monitor.bumper_window_s", m.bumper_window_s, 0.0, 2.0, " s")
+    _in_range("monitor.hold_s", m.hold_s, 0.0, 5.0, " s")
+    _in_range("monitor.below_palm_m", m.below_palm_m, 0.0, 1.0, " m")
+    _in_range("monitor.ground_clearance_m", m.ground_clearance_m, 0.0, 1.0, " m")
+    _in_range("monitor.max_time_s", m.max_time_s, 0.5, 60.0, " s")
+    return s
+
+
+# The parameter space of paper §V.A, [m].
+H_CATCH_RANGE = (0.0, 0.40)
+H_DOWN_RANGE = (-0.14, 0.0)
+
+
+def check_catch_parameters(h_catch, h_down, prefix=""):
+    """Refuses (h_catch, h_down) outside the paper's parameter space."""
+    _in_range(f"{prefix}h_catch_m", h_catch, *H_CATCH_RANGE, " m")
+    _in_range(f"{prefix}h_down_m", h_down, *H_DOWN_RANGE, " m")
+
+
+def load_scenario(path: str | Path | None = None) -> Scenario:
+    """Loads and validates a scenario; None gives the shipped defaults."""
+    if path is None:
+        return validate(Scenario())
+    path = Path(path)
+    if not path.is_file():
+        raise field_error("--scenario", str(path), "an existing YAML file")
+    try:
+        scenario = yaml_load_typed(schema=Scenario, filename=str(path))
+    except Exception as e:  # pydrake raises RuntimeError/TypeError/yaml errors.
+        first = str(e).strip().splitlines()[0] if str(e).strip() else repr(e)
+        raise InputError(f"{path}: {first}") from None
+    return validate(scenario)

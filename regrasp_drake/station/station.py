@@ -1,0 +1,251 @@
+"""The throw-and-catch station: one Diagram, built top to bottom.
+
+PUMA 560 + hand + object in a discrete MultibodyPlant with point contact; an
+inverse-dynamics controller for the arm on its own arm-only plant; in-plant PD
+servos for the fingers; the infrared sensors and the tactile bumper; the
+catch state machine; the source of the catch parameters (fixed, or the MLP);
+the grasp monitor; loggers; Meshcat when asked.
+"""
+
+import dataclasses as dc
+
+import numpy as np
+from pydrake.geometry import (HalfSpace, Meshcat, MeshcatVisualizer,
+                              MeshcatVisualizerParams, ProximityProperties,
+                              Role, RoleAssign)
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import (AddMultibodyPlant, CoulombFriction,
+                                     MultibodyPlant, MultibodyPlantConfig)
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.controllers import InverseDynamicsController
+from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.primitives import (ConstantValueSource,
+                                        ConstantVectorSource, LogVectorOutput)
+from pydrake.common.value import AbstractValue
+
+from regrasp_drake.paths import MODELS_DIR
+from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station.catch_state_machine import CatchStateMachine
+from regrasp_drake.station.grasp_monitor import GraspMonitor
+from regrasp_drake.station.scenario import Scenario
+from regrasp_drake.station.sensors import InfraredSensors, TactileBumper
+from regrasp_drake.world import robot
+from regrasp_drake.world.objects import ObjectSpec, add_object
+
+_IR_FRAMES = [f"ir{i}" for i in range(1, 14)]
+# The tactile bumper stands this proud of the palm (paper: 3 x 6 x 0.1 cm).
+_BUMPER_THICKNESS_M = 0.001
+
+
+@dc.dataclass
+class Station:
+    """The built diagram and handles to what an episode reads back."""
+    diagram: Diagram
+    plant: MultibodyPlant
+    object_body: object
+    arm: object
+    hand: object
+    state_machine: CatchStateMachine
+    monitor: GraspMonitor
+    loggers: dict
+    X_WO_initial: RigidTransform
+    meshcat: Meshcat | None
+
+
+def build_station(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
+                  X_WG: RigidTransform | None, catch_parameters=None,
+                  mlp_features=None, meshcat: Meshcat | None = None) -> Station:
+    """Builds the station for one episode.
+
+    X_WG: the palm's grasp pose; None makes a watching throw (no catch).
+    catch_parameters: (h_catch, h_down) in m, or None to take them as the
+    scenario's `catch.parameter_source` says: its fixed values, or the MLP
+    system fed with `mlp_features` (v_catch, h_cm, r_cm, d_obj, v_conv).
+    """
+    if catch_parameters is None and (
+            X_WG is None or scenario.catch.parameter_source == "fixed"):
+        catch_parameters = (scenario.catch.h_catch_m, scenario.catch.h_down_m)
+    builder = DiagramBuilder()
+    # Plant and scene graph: discrete, point contact, no air drag.
+    plant, scene_graph = AddMultibodyPlant(MultibodyPlantConfig(
+        time_step=scenario.time_step_s, contact_model="point",
+        discrete_contact_approximation=(
+            scenario.contact.discrete_contact_approximation)), builder)
+    # PUMA + hand welded to the world, the object a free body, the ground.
+    instances = robot.add_puma_and_hand(plant)
+    friction = CoulombFriction(scenario.contact.friction_coefficient,
+                               scenario.contact.friction_coefficient)
+    object_body = add_object(plant, obj, friction)
+    plant.RegisterCollisionGeometry(
+        plant.world_body(), RigidTransform(), HalfSpace(), "ground", friction)
+    plant.RegisterVisualGeometry(
+        plant.world_body(), RigidTransform(), HalfSpace(), "ground",
+        [0.55, 0.55, 0.5, 1.0])
+    plant.mutable_gravity_field().set_gravity_vector(
+        [0.0, 0.0, -scenario.gravity_m_per_s2])
+    plant.Finalize()
+    robot.exclude_robot_self_collisions(plant, scene_graph)
+    object_geometries = _set_object_contact(plant, scene_graph, object_body,
+                                            scenario)
+
+    # The arm: inverse dynamics on its own arm-only plant; the plant clamps
+    # the torques to the servos' effort limits.
+    arm_controller = builder.AddNamedSystem(
+        "arm_controller", InverseDynamicsController(
+            ik.plant, scenario.arm.kp, scenario.arm.ki, scenario.arm.kd,
+            has_reference_acceleration=True))
+    builder.Connect(plant.get_state_output_port(instances.arm),
+                    arm_controller.get_input_port_estimated_state())
+    builder.Connect(arm_controller.get_output_port_control(),
+                    plant.get_actuation_input_port(instances.arm))
+
+    # Sensors: 13 infrared range sensors and the tactile bumper.
+    s = scenario.sensors
+    ir = builder.AddNamedSystem("infrared", InfraredSensors(
+        plant, [plant.GetFrameByName(f, instances.hand) for f in _IR_FRAMES],
+        object_geometries, [s.palm_range_m] * 3 + [s.approach_range_m] * 10,
+        period_s=s.period_s, levels=s.levels))
+    builder.Connect(scene_graph.get_query_output_port(),
+                    ir.GetInputPort("query_object"))
+    bumper = builder.AddNamedSystem("bumper", TactileBumper(
+        plant, _bumper_geometry(plant, scene_graph, instances.hand),
+        object_geometries, s.period_s))
+    builder.Connect(plant.get_contact_results_output_port(),
+                    bumper.GetInputPort("contact_results"))
+
+    # The catch parameters: fixed, or predicted by the MLP.
+    if catch_parameters is not None:
+        params = builder.AddNamedSystem(
+            "catch_parameters", ConstantVectorSource(list(catch_parameters)))
+        params_port = params.get_output_port()
+    else:
+        from regrasp_drake.station.mlp_system import MlpSystem, load_weights
+        model, _ = load_weights(MODELS_DIR / scenario.catch.weights)
+        mlp = builder.AddNamedSystem("mlp", MlpSystem(model))
+        features = builder.AddNamedSystem(
+            "features", ConstantVectorSource(list(mlp_features)))
+        builder.Connect(features.get_output_port(), mlp.get_input_port())
+        params_port = mlp.get_output_port()
+
+    # The catch state machine (Fig. 9).
+    watching = X_WG is None
+    q_park = None
+    if watching:
+        q_park = np.array(scenario.throw.knot_q_rad[-1], float)
+        q_park[0] += scenario.throw.park_joint1_offset_rad
+    machine = builder.AddNamedSystem("catch_state_machine", CatchStateMachine(
+        scenario, ik, robot.HAND_OPEN, robot.HAND_CLOSED,
+        robot.FINGER_MAX_SPEED, park_q=q_park))
+    grasp = builder.AddNamedSystem("X_WG", ConstantValueSource(
+        AbstractValue.Make(X_WG if X_WG is not None else RigidTransform())))
+    builder.Connect(grasp.get_output_port(), machine.GetInputPort("X_WG"))
+    builder.Connect(ir.GetOutputPort("ir_levels"),
+                    machine.GetInputPort("ir_levels"))
+    builder.Connect(params_port, machine.GetInputPort("catch_parameters"))
+    builder.Connect(plant.get_state_output_port(instances.arm),
+                    machine.GetInputPort("arm_state"))
+    builder.Connect(machine.GetOutputPort("arm_desired_state"),
+                    arm_controller.get_input_port_desired_state())
+    builder.Connect(machine.GetOutputPort("arm_desired_acceleration"),
+                    arm_controller.get_input_port_desired_acceleration())
+    builder.Connect(machine.GetOutputPort("hand_desired_state"),
+                    plant.get_desired_state_input_port(instances.hand))
+
+    # The grasp monitor (paper §V.B); it stops the simulation at the outcome.
+    palm = plant.GetBodyByName("palm", instances.hand)
+    monitor = builder.AddNamedSystem("grasp_monitor", GraspMonitor(
+        scenario, object_body.index(), palm.index(),
+        plant.GetFrameByName("palm_surface", instances.hand)
+        .GetFixedPoseInBodyFrame(),
+        obj.bounding_radius, watching=watching))
+    builder.Connect(ir.GetOutputPort("ir_levels"), monitor.GetInputPort("ir_levels"))
+    builder.Connect(bumper.GetOutputPort("bumper"), monitor.GetInputPort("bumper"))
+    builder.Connect(machine.GetOutputPort("phase"), monitor.GetInputPort("phase"))
+    builder.Connect(plant.get_body_poses_output_port(),
+                    monitor.GetInputPort("body_poses"))
+
+    # Loggers, sampled at the sensors' rate.
+    period = s.period_s
+    loggers = {
+        "object": LogVectorOutput(
+            plant.get_state_output_port(object_body.model_instance()),
+            builder, period),
+        "ir": LogVectorOutput(ir.GetOutputPort("ir_levels"), builder, period),
+        "bumper": LogVectorOutput(bumper.GetOutputPort("bumper"), builder, period),
+        "phase": LogVectorOutput(machine.GetOutputPort("phase"), builder, period),
+        "actuation": LogVectorOutput(plant.get_net_actuation_output_port(),
+                                     builder, period),
+        "arm": LogVectorOutput(plant.get_state_output_port(instances.arm),
+                               builder, period),
+        "params": LogVectorOutput(params_port, builder, period),
+    }
+    # Meshcat, when asked (loopback only; see replay.make_meshcat).
+    if meshcat is not None:
+        MeshcatVisualizer.AddToBuilder(
+            builder, scene_graph, meshcat,
+            MeshcatVisualizerParams(publish_period=1 / 60))
+    diagram = builder.Build()
+
+    X_WO = _initial_object_pose(plant, instances, obj, scenario)
+    return Station(diagram=diagram, plant=plant, object_body=object_body,
+                   arm=instances.arm, hand=instances.hand,
+                   state_machine=machine, monitor=monitor, loggers=loggers,
+                   X_WO_initial=X_WO, meshcat=meshcat)
+
+
+def _set_object_contact(plant, scene_graph, object_body, scenario):
+    """Gives the object's collision geometries the scenario's point-contact
+    stiffness, dissipation and friction; returns their ids."""
+    inspector = scene_graph.model_inspector()
+    source_id = plant.get_source_id()
+    c = scenario.contact
+    ids = list(plant.GetCollisionGeometriesForBody(object_body))
+    for geometry_id in ids:
+        props = ProximityProperties(inspector.GetProximityProperties(geometry_id))
+        for name, value in (
+                ("point_contact_stiffness", c.point_stiffness_N_per_m),
+                ("hunt_crossley_dissipation",
+                 c.hunt_crossley_dissipation_s_per_m)):
+            if props.HasProperty("material", name):
+                props.UpdateProperty("material", name, value)
+            else:
+                props.AddProperty("material", name, value)
+        scene_graph.AssignRole(source_id, geometry_id, props, RoleAssign.kReplace)
+    return ids
+
+
+def _bumper_geometry(plant, scene_graph, hand):
+    inspector = scene_graph.model_inspector()
+    palm = plant.GetBodyByName("palm", hand)
+    for geometry_id in plant.GetCollisionGeometriesForBody(palm):
+        if inspector.GetName(geometry_id).endswith("bumper"):
+            return geometry_id
+    raise RuntimeError("the hand model has no collision geometry 'bumper'")
+
+
+def _initial_object_pose(plant, instances, obj, scenario) -> RigidTransform:
+    """The object lies in the palm, its symmetry axis along the palm's y (the
+    knuckle line), resting on the bumper."""
+    context = plant.CreateDefaultContext()
+    plant.SetPositions(context, instances.arm,
+                       np.array(scenario.throw.knot_q_rad[0], float))
+    plant.SetPositions(context, instances.hand, robot.HAND_OPEN)
+    X_WP = plant.GetFrameByName("palm_surface", instances.hand).CalcPoseInWorld(
+        context)
+    lift = obj.grasp_radius + _BUMPER_THICKNESS_M + 1e-3
+    return X_WP @ RigidTransform([0.0, 0.0, lift])
+
+
+def initialize(station: Station, scenario: Scenario) -> Simulator:
+    """A simulator at the episode's initial conditions (identical each time)."""
+    simulator = Simulator(station.diagram)
+    context = simulator.get_mutable_context()
+    plant = station.plant
+    plant_context = plant.GetMyMutableContextFromRoot(context)
+    plant.SetPositions(plant_context, station.arm,
+                       np.array(scenario.throw.knot_q_rad[0], float))
+    plant.SetPositions(plant_context, station.hand, robot.HAND_OPEN)
+    plant.SetFreeBodyPose(plant_context, station.object_body,
+                          station.X_WO_initial)
+    simulator.Initialize()
+    return simulator

@@ -1,0 +1,251 @@
+import math
+import unittest
+
+import numpy as np
+from pydrake.geometry import Box, Sphere
+from pydrake.math import RigidTransform, RollPitchYaw
+from pydrake.multibody.plant import (
+    AddMultibodyPlantSceneGraph,
+    ContactModel,
+    CoulombFriction,
+    DiscreteContactApproximation,
+)
+from pydrake.multibody.tree import FixedOffsetFrame, SpatialInertia, UnitInertia
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+
+from regrasp_drake.errors import InputError
+from regrasp_drake.station.sensors import (
+    InfraredSensors,
+    TactileBumper,
+    quantize,
+    unquantize,
+)
+
+PALM_SIZE = (0.10, 0.10, 0.02)  # m; the palm's top face is at z = 0.01.
+PALM_TOP_Z = 0.01
+SPHERE_RADIUS = 0.03  # m
+RANGE_M = 0.20  # m
+LEVELS = 1000
+PERIOD_S = 0.01  # s
+
+
+def _build(period_s=PERIOD_S):
+    """A welded palm box with four IR sensor frames and a free sphere, plus a
+    bumper on the palm's collision box. Returns a dict of the parts."""
+    builder = DiagramBuilder()
+    plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=1e-3)
+    plant.set_contact_model(ContactModel.kPoint)
+    plant.set_discrete_contact_approximation(DiscreteContactApproximation.kSap)
+    friction = CoulombFriction(0.8, 0.6)
+
+    palm = plant.AddRigidBody(
+        "palm", SpatialInertia(0.3, np.zeros(3), UnitInertia.SolidBox(*PALM_SIZE))
+    )
+    plant.WeldFrames(plant.world_frame(), palm.body_frame())
+    palm_id = plant.RegisterCollisionGeometry(
+        palm, RigidTransform(), Box(*PALM_SIZE), "palm", friction
+    )
+    sphere = plant.AddRigidBody(
+        "sphere", SpatialInertia(0.1, np.zeros(3), UnitInertia.SolidSphere(SPHERE_RADIUS))
+    )
+    sphere_id = plant.RegisterCollisionGeometry(
+        sphere, RigidTransform(), Sphere(SPHERE_RADIUS), "sphere", friction
+    )
+    # Sensors on the palm's top face, pointing up (+z), at these offsets (m):
+    # centred, oblique hit, off to the side (misses a sphere above the centre).
+    offsets = [(0.0, 0.0), (0.02, 0.0), (0.0, 0.045)]
+    frames = [
+        plant.AddFrame(
+            FixedOffsetFrame(f"ir_{i}", palm.body_frame(), RigidTransform([x, y, PALM_TOP_Z]))
+        )
+        for i, (x, y) in enumerate(offsets)
+    ]
+    # A fourth sensor at x = -0.15, z = 0.10, turned so that its +z is world +x.
+    frames.append(
+        plant.AddFrame(
+            FixedOffsetFrame(
+                "ir_side",
+                palm.body_frame(),
+                RigidTransform(RollPitchYaw(0, math.pi / 2, 0), [-0.15, 0.0, 0.10]),
+            )
+        )
+    )
+    plant.Finalize()
+
+    ir = builder.AddSystem(
+        InfraredSensors(plant, frames, [sphere_id], [RANGE_M] * 4, period_s=period_s, levels=LEVELS)
+    )
+    builder.Connect(scene_graph.get_query_output_port(), ir.get_input_port())
+    bumper = builder.AddSystem(TactileBumper(plant, palm_id, [sphere_id], period_s))
+    builder.Connect(plant.get_contact_results_output_port(), bumper.get_input_port())
+    diagram = builder.Build()
+    return dict(
+        diagram=diagram,
+        plant=plant,
+        scene_graph=scene_graph,
+        sphere=sphere,
+        ir=ir,
+        bumper=bumper,
+    )
+
+
+# Each sensor's ray in the world frame: origin and unit direction.
+SENSOR_RAYS = [
+    ((0.0, 0.0, PALM_TOP_Z), (0.0, 0.0, 1.0)),
+    ((0.02, 0.0, PALM_TOP_Z), (0.0, 0.0, 1.0)),
+    ((0.0, 0.045, PALM_TOP_Z), (0.0, 0.0, 1.0)),
+    ((-0.15, 0.0, 0.10), (1.0, 0.0, 0.0)),
+]
+
+
+def _expected_distance(ray, p_WC):
+    """The distance (m) along `ray` to the sphere's surface centred at p_WC,
+    or inf if the ray misses it (solves |o + s·u − c| = R for the least s ≥ 0);
+    0 if the ray starts inside it."""
+    o, u = np.array(ray[0]), np.array(ray[1])
+    oc = np.asarray(p_WC) - o
+    if oc @ oc <= SPHERE_RADIUS**2:
+        return 0.0
+    b = u @ oc
+    disc = b * b - (oc @ oc - SPHERE_RADIUS**2)
+    if disc < 0 or b - math.sqrt(disc) < 0:
+        return math.inf
+    return b - math.sqrt(disc)
+
+
+class QuantizeTest(unittest.TestCase):
+    def test_levels(self):
+        self.assertEqual(quantize(0.0, 0.2), 0)
+        self.assertEqual(quantize(0.1, 0.2), 500)
+        self.assertEqual(quantize(0.1999, 0.2), 999)
+        self.assertEqual(quantize(0.2, 0.2), 1000)
+        self.assertEqual(quantize(math.inf, 0.2), 1000)
+        self.assertEqual(quantize(-0.01, 0.2), 0)
+        self.assertEqual(quantize(0.05, 0.1, levels=10), 5)
+
+    def test_unquantize_inverts_within_half_a_quantum(self):
+        for d in np.linspace(0.0, 0.1999, 37):
+            self.assertAlmostEqual(unquantize(quantize(d, 0.2), 0.2), d, delta=0.2e-3 / 2 + 1e-12)
+        self.assertEqual(unquantize(1000, 0.2), math.inf)
+
+
+class InfraredSensorsTest(unittest.TestCase):
+    def setUp(self):
+        self.parts = _build()
+        self.diagram = self.parts["diagram"]
+        self.context = self.diagram.CreateDefaultContext()
+        self.plant = self.parts["plant"]
+        self.plant_context = self.plant.GetMyMutableContextFromRoot(self.context)
+        self.ir = self.parts["ir"]
+
+    def _levels_with_sphere_at(self, p_WC):
+        self.context.SetTime(0.0)
+        self.plant.SetFreeBodyPose(self.plant_context, self.parts["sphere"], RigidTransform(p_WC))
+        # Initialization samples the sensors once.
+        Simulator(self.diagram, self.context).Initialize()
+        return self.ir.get_output_port().Eval(self.ir.GetMyContextFromRoot(self.context))
+
+    def test_sphere_at_known_heights(self):
+        for height in [0.05, 0.08, 0.123, 0.20]:
+            p_WC = np.array([0.0, 0.0, height])
+            levels = self._levels_with_sphere_at(p_WC)
+            for i, ray in enumerate(SENSOR_RAYS):
+                expected = quantize(_expected_distance(ray, p_WC), RANGE_M)
+                self.assertLessEqual(abs(levels[i] - expected), 1, (height, i, levels))
+            # The centred sensor hits; the one 4.5 cm aside misses the 3 cm sphere.
+            self.assertLess(levels[0], LEVELS)
+            self.assertEqual(levels[2], LEVELS)
+        # The side sensor at z = 0.10 sees the sphere only within 3 cm of its height.
+        self.assertEqual(self._levels_with_sphere_at([0.0, 0.0, 0.05])[3], LEVELS)
+        self.assertLess(self._levels_with_sphere_at([0.0, 0.0, 0.123])[3], LEVELS)
+
+    def test_out_of_range_reads_levels(self):
+        # The sphere's bottom is 0.25 m above the sensors: beyond the 0.2 m range.
+        levels = self._levels_with_sphere_at([0.0, 0.0, PALM_TOP_Z + 0.25 + SPHERE_RADIUS])
+        np.testing.assert_array_equal(levels, [LEVELS] * 4)
+        # Just inside the range it reads 999 or less.
+        levels = self._levels_with_sphere_at([0.0, 0.0, PALM_TOP_Z + 0.199 + SPHERE_RADIUS])
+        self.assertEqual(levels[0], quantize(0.199, RANGE_M))
+
+    def test_sensor_direction_follows_its_frame(self):
+        # The side sensor at (-0.15, 0, 0.10) looks along world +x.
+        p_WC = np.array([0.0, 0.0, 0.10])
+        levels = self._levels_with_sphere_at(p_WC)
+        self.assertEqual(levels[3], quantize(0.15 - SPHERE_RADIUS, RANGE_M))
+
+    def test_readings_change_only_at_the_sample_period(self):
+        # The sphere falls from 0.2 m through the sensors' range onto the palm.
+        self.plant.SetFreeBodyPose(
+            self.plant_context, self.parts["sphere"], RigidTransform([0.0, 0.0, 0.20])
+        )
+        simulator = Simulator(self.diagram, self.context)
+        simulator.Initialize()
+        ir_context = self.ir.GetMyContextFromRoot(self.context)
+        dt = 1e-3
+        times, readings, heights = [], [], []
+        for k in range(251):
+            simulator.AdvanceTo(k * dt)
+            times.append(self.context.get_time())
+            readings.append(self.ir.get_output_port().Eval(ir_context).copy())
+            heights.append(
+                self.plant.EvalBodyPoseInWorld(self.plant_context, self.parts["sphere"]).translation()
+            )
+        changes = 0
+        for k in range(1, len(times)):
+            if np.array_equal(readings[k], readings[k - 1]):
+                continue
+            changes += 1
+            # The update that changed it ran at t_{k-1}, a multiple of the period,
+            # and saw the sphere where it was then or one plant step later (the
+            # plant's own update at that time may come first).
+            self.assertAlmostEqual(times[k - 1] / PERIOD_S, round(times[k - 1] / PERIOD_S), places=6)
+            errors = [
+                abs(readings[k][0] - quantize(_expected_distance(SENSOR_RAYS[0], p), RANGE_M))
+                for p in (heights[k - 1], heights[k])
+            ]
+            self.assertLessEqual(min(errors), 1, (times[k], readings[k], heights[k]))
+        self.assertGreaterEqual(changes, 10)
+        # Resting on the palm, the sphere reads 0 on the centred sensor.
+        self.assertEqual(readings[-1][0], 0)
+
+    def test_bad_arguments(self):
+        plant = self.plant
+        frame = plant.GetFrameByName("ir_0")
+        sphere_id = plant.GetCollisionGeometriesForBody(self.parts["sphere"])[0]
+        with self.assertRaisesRegex(InputError, "ranges_m"):
+            InfraredSensors(plant, [frame], [sphere_id], [0.1, 0.2], period_s=0.01)
+        with self.assertRaisesRegex(InputError, "period_s"):
+            InfraredSensors(plant, [frame], [sphere_id], [0.1], period_s=0.0)
+
+
+class TactileBumperTest(unittest.TestCase):
+    def test_sphere_dropped_on_bumper(self):
+        parts = _build()
+        diagram, plant, bumper = parts["diagram"], parts["plant"], parts["bumper"]
+        context = diagram.CreateDefaultContext()
+        plant_context = plant.GetMyMutableContextFromRoot(context)
+        # Sphere bottom 0.10 m above the palm: it lands after sqrt(2·0.1/g) ≈ 0.143 s.
+        plant.SetFreeBodyPose(
+            plant_context, parts["sphere"], RigidTransform([0.0, 0.0, PALM_TOP_Z + SPHERE_RADIUS + 0.10])
+        )
+        simulator = Simulator(diagram, context)
+        simulator.Initialize()
+        bumper_context = bumper.GetMyContextFromRoot(context)
+        t_land = math.sqrt(2 * 0.10 / 9.81)
+        readings = []
+        for k in range(51):
+            t = k * 0.01
+            simulator.AdvanceTo(t)
+            readings.append((t, bumper.get_output_port().Eval(bumper_context)[0]))
+        falling = [r for t, r in readings if t < t_land - 0.01]
+        resting = [r for t, r in readings if t > t_land + 0.1]
+        self.assertTrue(all(r == 0.0 for r in falling), readings)
+        self.assertTrue(resting and all(r == 1.0 for r in resting), readings)
+        # It rests on the palm: its height is the palm top plus its radius.
+        z = plant.EvalBodyPoseInWorld(plant_context, parts["sphere"]).translation()[2]
+        self.assertAlmostEqual(z, PALM_TOP_Z + SPHERE_RADIUS, delta=1e-3)
+
+
+if __name__ == "__main__":
+    unittest.main()
