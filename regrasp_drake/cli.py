@@ -51,11 +51,11 @@ def _cmd_catch(args) -> int:
     from regrasp_drake.station.scenario import check_catch_parameters
     check_catch_parameters(args.h_catch, args.h_down, prefix="--")
     from regrasp_drake.throw_catch import catch_once
-    result = catch_once(
+    result, plan = catch_once(
         scenario_path=args.scenario, object_name=args.object,
         object_file=args.object_file, h_catch=args.h_catch, h_down=args.h_down,
         html=args.html, plot=args.plot)
-    summary = result.summary()
+    summary = result.summary() | {"plan": plan.as_dict()}
     print(json.dumps(summary, indent=1))
     if args.json:
         args.json.write_text(json.dumps(summary, indent=1) + "\n")

@@ -1,5 +1,4 @@
 import os
-import pickle
 import tempfile
 import unittest
 
@@ -80,7 +79,9 @@ class WeightsFileTest(unittest.TestCase):
         data = torch.load(self.path, weights_only=True)
         data["state_dict"]["hidden.weight"] = torch.zeros(12, 5, dtype=torch.float64)
         torch.save(data, self.path)
-        with self.assertRaisesRegex(InputError, r"hidden\.weight shape.*\(12, 5\).*\(13, 5\)") as cm:
+        with self.assertRaisesRegex(
+            InputError, r"hidden\.weight shape.*\(12, 5\).*\(13, 5\)"
+        ) as cm:
             load_weights(self.path)
         self.assertIn(self.path, str(cm.exception))
 
@@ -123,7 +124,9 @@ class MlpSystemTest(unittest.TestCase):
     def _run_system(self, system, features):
         builder = DiagramBuilder()
         builder.AddSystem(system)
-        source = builder.AddSystem(ConstantVectorSource(np.asarray(features, dtype=float)))
+        source = builder.AddSystem(
+            ConstantVectorSource(np.asarray(features, dtype=float))
+        )
         builder.Connect(source.get_output_port(), system.get_input_port())
         diagram = builder.Build()
         simulator = Simulator(diagram)
@@ -142,7 +145,9 @@ class MlpSystemTest(unittest.TestCase):
         features = [2.0, 0.05, 0.03, 0.06, 0.5]
         before, at_start, later = self._run_system(MlpSystem(model, space), features)
         with torch.no_grad():
-            h_catch, h_down = model(torch.tensor(features, dtype=torch.float64)).tolist()
+            h_catch, h_down = model(
+                torch.tensor(features, dtype=torch.float64)
+            ).tolist()
         np.testing.assert_array_equal(at_start, space.clamp(h_catch, h_down))
         np.testing.assert_array_equal(later, at_start)
         self.assertTrue(np.isnan(before).all())  # Not computed before Initialize.

@@ -26,7 +26,10 @@ BOX_RGBA = [0.9, 0.1, 0.1, 1.0]  # The falling box is red,
 GROUND_RGBA = [0.1, 0.7, 0.1, 1.0]  # the ground green.
 HAVE_CHROMIUM = os.access(CHROMIUM, os.X_OK)
 if not HAVE_CHROMIUM:
-    print(f"test_replay: {CHROMIUM} is absent (apt-get install -y chromium): rendering skipped")
+    print(
+        f"test_replay: {CHROMIUM} is absent (apt-get install -y chromium): "
+        "rendering skipped"
+    )
 
 
 def _record_falling_box(meshcat, duration_s=0.5):
@@ -38,17 +41,27 @@ def _record_falling_box(meshcat, duration_s=0.5):
     box = plant.AddRigidBody(
         "box", SpatialInertia(1.0, np.zeros(3), UnitInertia.SolidBox(0.2, 0.2, 0.2))
     )
-    plant.RegisterVisualGeometry(box, RigidTransform(), Box(0.2, 0.2, 0.2), "box", BOX_RGBA)
-    plant.RegisterCollisionGeometry(box, RigidTransform(), Box(0.2, 0.2, 0.2), "box", friction)
+    plant.RegisterVisualGeometry(
+        box, RigidTransform(), Box(0.2, 0.2, 0.2), "box", BOX_RGBA
+    )
+    plant.RegisterCollisionGeometry(
+        box, RigidTransform(), Box(0.2, 0.2, 0.2), "box", friction
+    )
     X_WG = RigidTransform([0.0, 0.0, -0.05])
     ground = plant.world_body()
-    plant.RegisterVisualGeometry(ground, X_WG, Box(1.0, 1.0, 0.1), "ground", GROUND_RGBA)
-    plant.RegisterCollisionGeometry(ground, X_WG, Box(1.0, 1.0, 0.1), "ground", friction)
+    plant.RegisterVisualGeometry(
+        ground, X_WG, Box(1.0, 1.0, 0.1), "ground", GROUND_RGBA
+    )
+    plant.RegisterCollisionGeometry(
+        ground, X_WG, Box(1.0, 1.0, 0.1), "ground", friction
+    )
     plant.Finalize()
     MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
     diagram = builder.Build()
     context = diagram.CreateDefaultContext()
-    plant.SetFreeBodyPose(plant.GetMyMutableContextFromRoot(context), box, RigidTransform([0, 0, 0.5]))
+    plant.SetFreeBodyPose(
+        plant.GetMyMutableContextFromRoot(context), box, RigidTransform([0, 0, 0.5])
+    )
     simulator = Simulator(diagram, context)
     meshcat.StartRecording()
     simulator.AdvanceTo(duration_s)
@@ -61,14 +74,18 @@ class ReplayTest(unittest.TestCase):
         cls.meshcat = make_meshcat()
         _record_falling_box(cls.meshcat)
         cls.html_size_without_animation = len(cls.meshcat.StaticHtml())
-        cls.html_path = save_html(cls.meshcat, os.path.join(cls.dir.name, "replay.html"))
+        cls.html_path = save_html(
+            cls.meshcat, os.path.join(cls.dir.name, "replay.html")
+        )
 
     @classmethod
     def tearDownClass(cls):
         cls.dir.cleanup()
 
     def test_meshcat_listens_on_loopback(self):
-        self.assertRegex(self.meshcat.web_url(), r"^http://(localhost|127\.0\.0\.1):\d+$")
+        self.assertRegex(
+            self.meshcat.web_url(), r"^http://(localhost|127\.0\.0\.1):\d+$"
+        )
 
     def test_html_holds_the_animation(self):
         # save_html published the recording: 0.5 s at the visualizer's 64 Hz
@@ -81,11 +98,17 @@ class ReplayTest(unittest.TestCase):
         with open(self.html_path, encoding="utf-8") as f:
             html = f.read()
         self.assertGreater(len(html), 100_000)  # The viewer's JavaScript is inline.
-        external = re.findall(r"<(?:script|link|img)[^>]*(?:src|href)\s*=\s*[\"']?(?:https?:)?//", html, re.I)
+        external = re.findall(
+            r"<(?:script|link|img)[^>]*(?:src|href)\s*=\s*[\"']?(?:https?:)?//",
+            html,
+            re.I,
+        )
         self.assertEqual(external, [])
         self.assertIn("<script", html)
 
-    @unittest.skipUnless(HAVE_CHROMIUM, f"{CHROMIUM} is absent (apt-get install -y chromium)")
+    @unittest.skipUnless(
+        HAVE_CHROMIUM, f"{CHROMIUM} is absent (apt-get install -y chromium)"
+    )
     def test_render_draws_the_scene(self):
         png_path = render_html_to_png(
             self.html_path, os.path.join(self.dir.name, "replay.png"), timeout_s=120
@@ -100,14 +123,20 @@ class ReplayTest(unittest.TestCase):
         self.assertGreater(red, 50, "the box is not drawn")
         self.assertGreater(green, 500, "the ground is not drawn")
 
-    @unittest.skipUnless(HAVE_CHROMIUM, f"{CHROMIUM} is absent (apt-get install -y chromium)")
+    @unittest.skipUnless(
+        HAVE_CHROMIUM, f"{CHROMIUM} is absent (apt-get install -y chromium)"
+    )
     def test_empty_page_renders_blank(self):
         # The same render of a page without a scene has none of those colours.
         empty = os.path.join(self.dir.name, "empty.html")
         with open(empty, "w") as f:
             f.write("<html><body></body></html>")
         rgb = matplotlib.image.imread(
-            render_html_to_png(empty, os.path.join(self.dir.name, "empty.png"), virtual_time_budget_ms=100)
+            render_html_to_png(
+                empty,
+                os.path.join(self.dir.name, "empty.png"),
+                virtual_time_budget_ms=100,
+            )
         )[..., :3]
         self.assertEqual(len(np.unique(rgb.reshape(-1, 3), axis=0)), 1)
 

@@ -47,7 +47,8 @@ def _build(period_s=PERIOD_S):
         palm, RigidTransform(), Box(*PALM_SIZE), "palm", friction
     )
     sphere = plant.AddRigidBody(
-        "sphere", SpatialInertia(0.1, np.zeros(3), UnitInertia.SolidSphere(SPHERE_RADIUS))
+        "sphere",
+        SpatialInertia(0.1, np.zeros(3), UnitInertia.SolidSphere(SPHERE_RADIUS)),
     )
     sphere_id = plant.RegisterCollisionGeometry(
         sphere, RigidTransform(), Sphere(SPHERE_RADIUS), "sphere", friction
@@ -57,7 +58,9 @@ def _build(period_s=PERIOD_S):
     offsets = [(0.0, 0.0), (0.02, 0.0), (0.0, 0.045)]
     frames = [
         plant.AddFrame(
-            FixedOffsetFrame(f"ir_{i}", palm.body_frame(), RigidTransform([x, y, PALM_TOP_Z]))
+            FixedOffsetFrame(
+                f"ir_{i}", palm.body_frame(), RigidTransform([x, y, PALM_TOP_Z])
+            )
         )
         for i, (x, y) in enumerate(offsets)
     ]
@@ -74,7 +77,9 @@ def _build(period_s=PERIOD_S):
     plant.Finalize()
 
     ir = builder.AddSystem(
-        InfraredSensors(plant, frames, [sphere_id], [RANGE_M] * 4, period_s=period_s, levels=LEVELS)
+        InfraredSensors(
+            plant, frames, [sphere_id], [RANGE_M] * 4, period_s=period_s, levels=LEVELS
+        )
     )
     builder.Connect(scene_graph.get_query_output_port(), ir.get_input_port())
     bumper = builder.AddSystem(TactileBumper(plant, palm_id, [sphere_id], period_s))
@@ -126,7 +131,9 @@ class QuantizeTest(unittest.TestCase):
 
     def test_unquantize_inverts_within_half_a_quantum(self):
         for d in np.linspace(0.0, 0.1999, 37):
-            self.assertAlmostEqual(unquantize(quantize(d, 0.2), 0.2), d, delta=0.2e-3 / 2 + 1e-12)
+            self.assertAlmostEqual(
+                unquantize(quantize(d, 0.2), 0.2), d, delta=0.2e-3 / 2 + 1e-12
+            )
         self.assertEqual(unquantize(1000, 0.2), math.inf)
 
 
@@ -141,10 +148,14 @@ class InfraredSensorsTest(unittest.TestCase):
 
     def _levels_with_sphere_at(self, p_WC):
         self.context.SetTime(0.0)
-        self.plant.SetFreeBodyPose(self.plant_context, self.parts["sphere"], RigidTransform(p_WC))
+        self.plant.SetFreeBodyPose(
+            self.plant_context, self.parts["sphere"], RigidTransform(p_WC)
+        )
         # Initialization samples the sensors once.
         Simulator(self.diagram, self.context).Initialize()
-        return self.ir.get_output_port().Eval(self.ir.GetMyContextFromRoot(self.context))
+        return self.ir.get_output_port().Eval(
+            self.ir.GetMyContextFromRoot(self.context)
+        )
 
     def test_sphere_at_known_heights(self):
         for height in [0.05, 0.08, 0.123, 0.20]:
@@ -162,10 +173,14 @@ class InfraredSensorsTest(unittest.TestCase):
 
     def test_out_of_range_reads_levels(self):
         # The sphere's bottom is 0.25 m above the sensors: beyond the 0.2 m range.
-        levels = self._levels_with_sphere_at([0.0, 0.0, PALM_TOP_Z + 0.25 + SPHERE_RADIUS])
+        levels = self._levels_with_sphere_at(
+            [0.0, 0.0, PALM_TOP_Z + 0.25 + SPHERE_RADIUS]
+        )
         np.testing.assert_array_equal(levels, [LEVELS] * 4)
         # Just inside the range it reads 999 or less.
-        levels = self._levels_with_sphere_at([0.0, 0.0, PALM_TOP_Z + 0.199 + SPHERE_RADIUS])
+        levels = self._levels_with_sphere_at(
+            [0.0, 0.0, PALM_TOP_Z + 0.199 + SPHERE_RADIUS]
+        )
         self.assertEqual(levels[0], quantize(0.199, RANGE_M))
 
     def test_sensor_direction_follows_its_frame(self):
@@ -189,7 +204,9 @@ class InfraredSensorsTest(unittest.TestCase):
             times.append(self.context.get_time())
             readings.append(self.ir.get_output_port().Eval(ir_context).copy())
             heights.append(
-                self.plant.EvalBodyPoseInWorld(self.plant_context, self.parts["sphere"]).translation()
+                self.plant.EvalBodyPoseInWorld(
+                    self.plant_context, self.parts["sphere"]
+                ).translation()
             )
         changes = 0
         for k in range(1, len(times)):
@@ -199,9 +216,14 @@ class InfraredSensorsTest(unittest.TestCase):
             # The update that changed it ran at t_{k-1}, a multiple of the period,
             # and saw the sphere where it was then or one plant step later (the
             # plant's own update at that time may come first).
-            self.assertAlmostEqual(times[k - 1] / PERIOD_S, round(times[k - 1] / PERIOD_S), places=6)
+            self.assertAlmostEqual(
+                times[k - 1] / PERIOD_S, round(times[k - 1] / PERIOD_S), places=6
+            )
             errors = [
-                abs(readings[k][0] - quantize(_expected_distance(SENSOR_RAYS[0], p), RANGE_M))
+                abs(
+                    readings[k][0]
+                    - quantize(_expected_distance(SENSOR_RAYS[0], p), RANGE_M)
+                )
                 for p in (heights[k - 1], heights[k])
             ]
             self.assertLessEqual(min(errors), 1, (times[k], readings[k], heights[k]))
@@ -227,7 +249,9 @@ class TactileBumperTest(unittest.TestCase):
         plant_context = plant.GetMyMutableContextFromRoot(context)
         # Sphere bottom 0.10 m above the palm: it lands after sqrt(2·0.1/g) ≈ 0.143 s.
         plant.SetFreeBodyPose(
-            plant_context, parts["sphere"], RigidTransform([0.0, 0.0, PALM_TOP_Z + SPHERE_RADIUS + 0.10])
+            plant_context,
+            parts["sphere"],
+            RigidTransform([0.0, 0.0, PALM_TOP_Z + SPHERE_RADIUS + 0.10]),
         )
         simulator = Simulator(diagram, context)
         simulator.Initialize()

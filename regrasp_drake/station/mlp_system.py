@@ -79,7 +79,9 @@ def save_weights(path, model: CatchMlp, metadata: dict):
         json.dumps(metadata)
     except (TypeError, ValueError) as e:
         raise field_error("metadata", metadata, f"a JSON-able dict ({e})") from None
-    state = {k: v.detach().to(torch.float64).clone() for k, v in model.state_dict().items()}
+    state = {
+        k: v.detach().to(torch.float64).clone() for k, v in model.state_dict().items()
+    }
     torch.save(
         {
             "format": _FORMAT,
@@ -124,7 +126,9 @@ def load_weights(path) -> tuple[CatchMlp, dict]:
             raise InputError(f"{path}: tensor {name} missing")
         if tuple(tensor.shape) != tuple(expected.shape):
             raise field_error(
-                f"{path}: tensor {name} shape", tuple(tensor.shape), str(tuple(expected.shape))
+                f"{path}: tensor {name} shape",
+                tuple(tensor.shape),
+                str(tuple(expected.shape)),
             )
         if not torch.isfinite(tensor).all():
             raise InputError(f"{path}: tensor {name} holds non-finite values")
@@ -165,12 +169,16 @@ class MlpSystem(LeafSystem):
     result is held as discrete state; before initialization the output is NaN.
     """
 
-    def __init__(self, model: CatchMlp, parameter_space: ParameterSpace = ParameterSpace()):
+    def __init__(
+        self, model: CatchMlp, parameter_space: ParameterSpace = ParameterSpace()
+    ):
         LeafSystem.__init__(self)
         # A private float64 copy in eval mode: the caller may go on training.
         self._model = copy.deepcopy(model).to(torch.float64).eval()
         self._space = parameter_space
-        self._features_port = self.DeclareVectorInputPort("features", len(FEATURE_NAMES))
+        self._features_port = self.DeclareVectorInputPort(
+            "features", len(FEATURE_NAMES)
+        )
         state = self.DeclareDiscreteState(np.full(len(PARAMETER_NAMES), np.nan))
         self.DeclareInitializationDiscreteUpdateEvent(update=self._initialize)
         self.DeclareStateOutputPort("catch_parameters", state)
@@ -183,4 +191,6 @@ class MlpSystem(LeafSystem):
         return self._space.clamp(h_catch, h_down)
 
     def _initialize(self, context, discrete_state):
-        discrete_state.set_value(0, self.parameters_for(self._features_port.Eval(context)))
+        discrete_state.set_value(
+            0, self.parameters_for(self._features_port.Eval(context))
+        )

@@ -53,7 +53,9 @@ def save_html(meshcat: Meshcat, path) -> str:
     return path
 
 
-def chromium_command(url: str, png_path: str, user_data_dir: str, window_size, budget_ms):
+def chromium_command(
+    url: str, png_path: str, user_data_dir: str, window_size, budget_ms
+):
     """Returns the argument list for a headless Chromium screenshot of url,
     with WebGL drawn in software (SwiftShader) and no network besides the page."""
     width, height = window_size
@@ -91,7 +93,8 @@ def render_html_to_png(
     missing, fails, or takes longer than timeout_s (s)."""
     if not os.access(CHROMIUM, os.X_OK):
         raise ReplayError(
-            f"Chromium not found at {CHROMIUM}: install it with 'apt-get install -y chromium'"
+            f"Chromium not found at {CHROMIUM}: "
+            "install it with 'apt-get install -y chromium'"
         )
     html_path = os.path.abspath(os.fspath(html_path))
     png_path = os.path.abspath(os.fspath(png_path))
@@ -102,7 +105,11 @@ def render_html_to_png(
     with tempfile.TemporaryDirectory(prefix="regrasp-chromium-") as work_dir:
         user_data_dir = os.path.join(work_dir, "profile")
         command = chromium_command(
-            "file://" + html_path, png_path, user_data_dir, window_size, virtual_time_budget_ms
+            "file://" + html_path,
+            png_path,
+            user_data_dir,
+            window_size,
+            virtual_time_budget_ms,
         )
         log_path = os.path.join(work_dir, "chromium.log")
         start = time.monotonic()
@@ -127,11 +134,14 @@ def render_html_to_png(
         with open(log_path, errors="replace") as log:
             lines = log.read().strip().splitlines()
     if returncode is None:
-        raise ReplayError(f"Chromium took more than {timeout_s} s to render {html_path}")
+        raise ReplayError(
+            f"Chromium took more than {timeout_s} s to render {html_path}"
+        )
     if returncode != 0 or not os.path.isfile(png_path):
         last = lines[-1] if lines else "no output"
         raise ReplayError(
-            f"Chromium failed to render {html_path} (exit {returncode}, {elapsed:.1f} s): {last}"
+            f"Chromium failed to render {html_path} "
+            f"(exit {returncode}, {elapsed:.1f} s): {last}"
         )
     return png_path
 

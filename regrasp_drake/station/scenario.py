@@ -77,6 +77,12 @@ class SensorConfig:
 
 @dc.dataclass
 class CatchConfig:
+    # Height of the object's origin at the catch point, [m]: the hand waits
+    # under the watched flight where the object falls through this height.
+    catch_height_m: float = 0.8
+    # A catch point needs the object's axis this close to horizontal,
+    # |y_O · z_W| < tolerance, [-].
+    tilt_tolerance: float = 0.15
     # Duration of the arm's move from the release to the grasp position, [s].
     move_to_grasp_s: float = 0.35
     # The hand is at the grasp position when its wrist is this close, [m]
@@ -186,6 +192,8 @@ def validate(s: Scenario) -> Scenario:
     _in_range("sensors.approach_range_m", n.approach_range_m, 0.40, 2.0, " m")
     _in_range("sensors.levels", n.levels, 2, 1e6)
     k = s.catch
+    _in_range("catch.catch_height_m", k.catch_height_m, 0.2, 1.6, " m")
+    _in_range("catch.tilt_tolerance", k.tilt_tolerance, 0.0, 1.0)
     _in_range("catch.move_to_grasp_s", k.move_to_grasp_s, 0.05, 3.0, " s")
     _in_range("catch.grasp_tolerance_m", k.grasp_tolerance_m, 1e-5, 0.05, " m")
     _in_range("catch.lower_speed_m_per_s", k.lower_speed_m_per_s, 0.01, 5.0,

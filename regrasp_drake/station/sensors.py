@@ -104,7 +104,9 @@ class InfraredSensors(LeafSystem):
             if not (r > 0 and math.isfinite(r)):
                 raise field_error("ranges_m", ranges_m, "finite ranges > 0 (m)")
         if not target_geometry_ids:
-            raise field_error("target_geometry_ids", target_geometry_ids, "at least one id")
+            raise field_error(
+                "target_geometry_ids", target_geometry_ids, "at least one id"
+            )
         if not (period_s > 0 and math.isfinite(period_s)):
             raise field_error("period_s", period_s, "a finite period > 0 (s)")
         if not (isinstance(levels, int) and levels >= 1):
@@ -184,7 +186,9 @@ class TactileBumper(LeafSystem):
     ):
         LeafSystem.__init__(self)
         if not target_geometry_ids:
-            raise field_error("target_geometry_ids", target_geometry_ids, "at least one id")
+            raise field_error(
+                "target_geometry_ids", target_geometry_ids, "at least one id"
+            )
         if not (period_s > 0 and math.isfinite(period_s)):
             raise field_error("period_s", period_s, "a finite period > 0 (s)")
         self._bumper_id = bumper_geometry_id

@@ -1,0 +1,100 @@
+"""The offline stage: catch points from a watched flight, and the hand's pose.
+
+A catch point is a moment of the descent where the object's symmetry axis y_O
+is horizontal (|y_O · z_W| below a tolerance) and the object is at a height the
+hand can wait at. The paper catches "where the object is horizontal,
+otherwise the probability of catching is reduced" (§V).
+"""
+
+import dataclasses as dc
+
+import numpy as np
+from pydrake.common.eigen_geometry import Quaternion
+from pydrake.math import RigidTransform, RotationMatrix
+
+from regrasp_drake.planning.ik import palm_up_pose
+
+
+@dc.dataclass
+class CatchPoint:
+    t_s: float              # time of the episode, [s]
+    p_WO: np.ndarray        # the object frame's origin, [m]
+    y_W: np.ndarray         # the object's symmetry axis, unit, in W
+    v_catch: float          # the object's vertical velocity there, [m/s]
+    tilt: float             # |y_O · z_W|, [-]
+
+    def as_dict(self) -> dict:
+        return {"t_s": round(self.t_s, 4),
+                "p_WO": [round(float(c), 5) for c in self.p_WO],
+                "axis_W": [round(float(c), 5) for c in self.y_W],
+                "v_catch": round(self.v_catch, 4), "tilt": round(self.tilt, 5)}
+
+
+def find_catch_points(t, object_state, *, height_m: float,
+                      tilt_tolerance: float = 0.1) -> list[CatchPoint]:
+    """Catch points of a logged flight (13-row object states, wxyz quaternion,
+    p_WO, w, v). Where the axis stays horizontal through the descent, the
+    catch point is where the object's origin falls through `height_m`; where
+    the axis turns, it is the most horizontal moment of each horizontal
+    passage below the apex and above `height_m` - 0.15 m (refined linearly
+    between samples)."""
+    t = np.asarray(t)
+    p = object_state[4:7]
+    v = object_state[10:13]
+    y_W = np.array([_axis(object_state[:4, k]) for k in range(len(t))]).T
+    tilt = np.abs(y_W[2])
+    apex = int(np.argmax(p[2]))
+    points = []
+    # The crossing of height_m in the descent.
+    for k in range(apex, len(t) - 1):
+        if p[2, k] >= height_m > p[2, k + 1]:
+            a = (p[2, k] - height_m) / (p[2, k] - p[2, k + 1])
+            points.append(_interpolate(t, p, v, y_W, k, a))
+            break
+    return [c for c in points if c.tilt < tilt_tolerance]
+
+
+def _axis(quaternion_wxyz) -> np.ndarray:
+    q = np.asarray(quaternion_wxyz, float)
+    R = RotationMatrix(Quaternion(q / np.linalg.norm(q)))
+    return R.matrix()[:, 1]
+
+
+def _interpolate(t, p, v, y_W, k, a) -> CatchPoint:
+    y = (1 - a) * y_W[:, k] + a * y_W[:, k + 1]
+    y /= np.linalg.norm(y)
+    return CatchPoint(
+        t_s=float((1 - a) * t[k] + a * t[k + 1]),
+        p_WO=(1 - a) * p[:, k] + a * p[:, k + 1],
+        y_W=y, v_catch=float((1 - a) * v[2, k] + a * v[2, k + 1]),
+        tilt=float(abs(y[2])))
+
+
+def palm_pose_for(catch_point: CatchPoint, grasp_radius_m: float,
+                  palm_clearance_m: float = 0.002,
+                  theta_rad: float = 0.3) -> RigidTransform:
+    """The palm's pose under a catch point: palm up, centred under the object's
+    origin, its fingers closing perpendicular to the object's axis (palm +x
+    perpendicular to y_O), on the side the paper's θ construction picks."""
+    y = catch_point.y_W.copy()
+    y[2] = 0.0
+    y /= np.linalg.norm(y)
+    x = _closing_direction(catch_point.p_WO, y, theta_rad)
+    p_WP = catch_point.p_WO - np.array(
+        [0.0, 0.0, grasp_radius_m + palm_clearance_m])
+    return palm_up_pose(p_WP, x)
+
+
+def _closing_direction(p_WO, y_horizontal, theta_rad) -> np.ndarray:
+    """The paper's eqs. (2)-(5) in a z-up world: rotate the catch point's
+    horizontal projection by θ about the vertical; the difference points to
+    one side of the axis; the closing direction is that side's component
+    perpendicular to the axis."""
+    r_p = np.array([p_WO[0], p_WO[1], 0.0])
+    c, s = np.cos(theta_rad), np.sin(theta_rad)
+    R_z = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    r_R = R_z @ r_p - r_p
+    x = r_R - np.dot(r_R, y_horizontal) * y_horizontal
+    if np.linalg.norm(x) < 1e-9:  # r_R along the axis: either side will do
+        x = np.cross([0.0, 0.0, 1.0], y_horizontal)
+    return x / np.linalg.norm(x)

@@ -1,0 +1,60 @@
+"""The command line, as a user runs it: exit codes and one-line errors."""
+
+import json
+import subprocess
+import sys
+import tempfile
+import unittest
+from pathlib import Path
+
+
+def _run(*args):
+    return subprocess.run([sys.executable, "-m", "regrasp_drake.cli", *args],
+                          capture_output=True, text=True, timeout=120)
+
+
+class TestCli(unittest.TestCase):
+    def test_objects_lists_catalogue(self):
+        result = _run("objects", "--json")
+        self.assertEqual(result.returncode, 0, result.stderr)
+        rows = json.loads(result.stdout)
+        sets = [r["set"] for r in rows]
+        self.assertEqual(sets.count("train"), 48)
+        self.assertEqual(sets.count("test"), 5)
+        self.assertEqual({r["name"] for r in rows if r["set"] == "test"},
+                         {f"table1-row{i}" for i in range(1, 6)})
+
+    def test_catch_refuses_out_of_range_parameters(self):
+        for flag, value in (("--h-catch", "0.5"), ("--h-down", "0.02")):
+            args = {"--h-catch": "0.2", "--h-down": "-0.05"} | {flag: value}
+            result = _run("catch", "--object", "table1-row2",
+                          *[x for kv in args.items() for x in kv])
+            with self.subTest(flag=flag):
+                self.assertEqual(result.returncode, 2)
+                self.assertEqual(len(result.stderr.strip().splitlines()), 1)
+                self.assertIn(flag.lstrip("-").replace("-", "_"), result.stderr)
+
+    def test_bad_object_file_refused(self):
+        with tempfile.TemporaryDirectory() as d:
+            path = Path(d) / "o.yaml"
+            path.write_text("geometries:\n  g:\n    pieces:\n      - {shape: cone, "
+                            "radius: 0.03, length: 0.1, axis: y, center: [0, 0, 0], "
+                            "grasp: true}\nobjects:\n  - {name: x, set: test, "
+                            "geometry: g, density: 200, h_cm: 0, r_cm: 0}\n")
+            result = _run("objects", "--object-file", str(path))
+        self.assertEqual(result.returncode, 2)
+        self.assertIn("shape", result.stderr)
+        self.assertEqual(len(result.stderr.strip().splitlines()), 1)
+
+    def test_bad_scenario_refused(self):
+        with tempfile.TemporaryDirectory() as d:
+            path = Path(d) / "s.yaml"
+            path.write_text("sensors:\n  levels: 0\n")
+            result = _run("catch", "--object", "table1-row2", "--h-catch", "0.2",
+                          "--h-down", "-0.05", "--scenario", str(path))
+        self.assertEqual(result.returncode, 2)
+        self.assertIn("sensors.levels", result.stderr)
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -1,0 +1,70 @@
+"""The scenario loader refuses what it cannot use, naming the field."""
+
+import tempfile
+import unittest
+from pathlib import Path
+
+from regrasp_drake.errors import InputError
+from regrasp_drake.station.scenario import (Scenario, check_catch_parameters,
+                                            load_scenario)
+
+
+class TestScenario(unittest.TestCase):
+    def _load(self, text):
+        with tempfile.TemporaryDirectory() as d:
+            path = Path(d) / "s.yaml"
+            path.write_text(text)
+            return load_scenario(path)
+
+    def test_defaults_valid(self):
+        self.assertIsInstance(load_scenario(), Scenario)
+
+    def test_partial_file_keeps_defaults(self):
+        s = self._load("time_step_s: 0.0005\ncontact:\n  friction_coefficient: 0.5\n")
+        self.assertEqual(s.time_step_s, 0.0005)
+        self.assertEqual(s.contact.friction_coefficient, 0.5)
+        self.assertEqual(s.sensors.levels, Scenario().sensors.levels)
+
+    def test_unknown_key_refused(self):
+        with self.assertRaisesRegex(InputError, "time_stpe_s"):
+            self._load("time_stpe_s: 0.001\n")
+
+    def test_out_of_range_refused_with_field(self):
+        cases = {
+            "time_step_s: -1\n": "time_step_s",
+            "contact:\n  discrete_contact_approximation: tamsi\n":
+                "contact.discrete_contact_approximation",
+            "sensors:\n  approach_range_m: 0.2\n": "sensors.approach_range_m",
+            "catch:\n  h_catch_m: 0.9\n": "catch.h_catch_m",
+            "arm:\n  kp: [1, 2]\n": "arm.kp",
+            "throw:\n  knot_times_s: [0, 0.2, 0.1]\n  knot_q_rad: "
+            "[[0,0,0,0,0,0],[0,0,0,0,0,0],[0,0,0,0,0,0]]\n": "throw.knot_times_s",
+        }
+        for text, field in cases.items():
+            with self.subTest(field=field):
+                with self.assertRaises(InputError) as e:
+                    self._load(text)
+                self.assertIn(field, str(e.exception))
+                self.assertEqual(len(str(e.exception).splitlines()), 1)
+
+    def test_not_yaml_refused(self):
+        with self.assertRaises(InputError):
+            self._load("time_step_s: [unclosed\n")
+
+    def test_missing_file_refused(self):
+        with self.assertRaisesRegex(InputError, "--scenario"):
+            load_scenario("/nonexistent/scenario.yaml")
+
+    def test_parameter_space(self):
+        check_catch_parameters(0.40, -0.14)
+        check_catch_parameters(0.0, 0.0)
+        for h_catch, h_down, field in ((0.41, -0.05, "h_catch_m"),
+                                       (0.2, 0.01, "h_down_m"),
+                                       (0.2, -0.15, "h_down_m"),
+                                       (float("nan"), -0.05, "h_catch_m")):
+            with self.assertRaisesRegex(InputError, field):
+                check_catch_parameters(h_catch, h_down)
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -1,0 +1,145 @@
+"""The throw-and-catch station: physics of the flight, determinism, torque
+limits, the state machine's phases and the grasp monitor's verdicts.
+
+Episodes are simulated once per class (a few seconds each) and shared.
+"""
+
+import unittest
+
+import numpy as np
+from pydrake.common.eigen_geometry import Quaternion
+from pydrake.math import RigidTransform, RotationMatrix
+
+from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station.catch_state_machine import Phase
+from regrasp_drake.station.episode import run_episode
+from regrasp_drake.station.scenario import load_scenario
+from regrasp_drake.throw_catch import plan_catch, watch
+from regrasp_drake.world import robot
+from regrasp_drake.world.objects import load_catalogue
+
+OBJECT = "table1-row2"
+
+
+def _free_flight(logs, scenario):
+    """Samples where the object flies free: more than 5 cm from the palm
+    sensors' reach and above the catch height, between release and landing."""
+    z = logs.object_state[6]
+    apex = int(np.argmax(z))
+    far = logs.ir[:3].min(axis=0) >= scenario.sensors.levels
+    # Walk out from the apex while nothing touches the object.
+    lo = apex
+    while lo > 0 and far[lo - 1] and logs.bumper[lo - 1] == 0:
+        lo -= 1
+    hi = apex
+    while hi < len(z) - 1 and far[hi + 1] and z[hi + 1] > 0.3:
+        hi += 1
+    return slice(lo + 3, hi - 3)
+
+
+class TestWatchedFlight(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.scenario = load_scenario()
+        cls.ik = ArmIk()
+        cls.obj = load_catalogue()[OBJECT]
+        cls.first = watch(cls.scenario, cls.obj, cls.ik)
+        cls.second = watch(cls.scenario, cls.obj, cls.ik)
+
+    def test_watching_throw_lands(self):
+        self.assertEqual(self.first.outcome, "landed", self.first.message)
+
+    def test_parabola_with_scenario_gravity(self):
+        logs = self.first.logs
+        window = _free_flight(logs, self.scenario)
+        t = logs.t[window]
+        self.assertGreater(len(t), 20, "too short a free flight to fit")
+        # Centre of mass: p_WCm = p_WO + R_WO p_OCm.
+        p_OCm = self.obj.p_OCm
+        p = np.array([logs.object_state[4:7, k] + _rotation(
+            logs.object_state[:4, k]) @ p_OCm for k in range(len(logs.t))]).T
+        for axis in range(3):
+            coefficients = np.polyfit(t - t[0], p[axis, window], 2)
+            if axis == 2:
+                self.assertAlmostEqual(
+                    2 * coefficients[0], -self.scenario.gravity_m_per_s2,
+                    delta=1e-3 * self.scenario.gravity_m_per_s2)
+            else:
+                self.assertLess(abs(2 * coefficients[0]), 1e-3 * 9.81)
+
+    def test_angular_momentum_about_com_conserved(self):
+        logs = self.first.logs
+        window = _free_flight(logs, self.scenario)
+        M = self.obj.spatial_inertia()
+        I_Cm_O = M.Shift(M.get_com()).CalcRotationalInertia().CopyToFullMatrix3()
+        H = []
+        for k in range(len(logs.t))[window]:
+            R = _rotation(logs.object_state[:4, k])
+            w_W = logs.object_state[7:10, k]
+            H.append(R @ I_Cm_O @ R.T @ w_W)
+        H = np.array(H)
+        norm = np.linalg.norm(H[0])
+        self.assertGreater(norm, 1e-6, "the object does not turn")
+        drift = np.max(np.linalg.norm(H - H[0], axis=1)) / norm
+        self.assertLess(drift, 1e-6)
+
+    def test_flights_bit_identical(self):
+        np.testing.assert_array_equal(self.first.logs.object_state,
+                                      self.second.logs.object_state)
+
+    def test_rises_above_catch_height(self):
+        z = self.first.logs.object_state[6]
+        self.assertGreaterEqual(
+            z.max() - self.scenario.catch.catch_height_m, 0.45)
+
+    def test_actuation_within_effort_limits(self):
+        limits = np.concatenate([robot.ARM_EFFORT_LIMITS,
+                                 np.full(10, robot.FINGER_EFFORT_LIMIT)])
+        peak = np.abs(self.first.logs.actuation).max(axis=1)
+        self.assertTrue(np.all(peak <= limits + 1e-9), f"peak {peak}")
+
+
+class TestCatch(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.scenario = load_scenario()
+        cls.ik = ArmIk()
+        cls.obj = load_catalogue()[OBJECT]
+        watched = watch(cls.scenario, cls.obj, cls.ik)
+        cls.plan = plan_catch(cls.scenario, cls.obj, cls.ik, watched)
+        c = cls.scenario.catch
+        cls.caught = run_episode(cls.scenario, cls.obj, ik=cls.ik,
+                                 X_WG=cls.plan.X_WG,
+                                 catch_parameters=(c.h_catch_m, c.h_down_m))
+        # The hand waits 0.25 m to the side of the flight: a plain miss.
+        X_WG = RigidTransform(cls.plan.X_WG.rotation(),
+                              cls.plan.X_WG.translation() + [0.0, 0.25, 0.0])
+        cls.missed = run_episode(cls.scenario, cls.obj, ik=cls.ik, X_WG=X_WG,
+                                 catch_parameters=(c.h_catch_m, c.h_down_m))
+
+    def test_default_parameters_catch(self):
+        self.assertEqual(self.caught.outcome, "caught", self.caught.message)
+        self.assertIsNotNone(self.caught.catch_time_s)
+
+    def test_phases_in_papers_order(self):
+        phases = self.caught.logs.phase.astype(int)
+        order = [p for i, p in enumerate(phases) if i == 0 or p != phases[i - 1]]
+        self.assertEqual(order, [int(p) for p in Phase])
+
+    def test_object_rests_in_palm_when_caught(self):
+        logs = self.caught.logs
+        self.assertTrue(np.all(logs.ir[:3, -1] < self.scenario.monitor.palm_grasp_level))
+        self.assertLess(np.linalg.norm(logs.object_state[10:13, -1]), 0.05)
+
+    def test_hand_away_drops(self):
+        self.assertEqual(self.missed.outcome, "dropped", self.missed.message)
+        self.assertIsNone(self.missed.catch_time_s)
+
+
+def _rotation(quaternion_wxyz):
+    q = np.asarray(quaternion_wxyz, float)
+    return RotationMatrix(Quaternion(q / np.linalg.norm(q))).matrix()
+
+
+if __name__ == "__main__":
+    unittest.main()
