@@ -5,6 +5,7 @@ Every error from bad input is one line on stderr and exit status 2.
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -62,6 +63,23 @@ def _cmd_catch(args) -> int:
     return 0
 
 
+def _cmd_grid(args) -> int:
+    from regrasp_drake.grid import format_map, success_map
+    from regrasp_drake.station.scenario import load_scenario
+    from regrasp_drake.world.objects import resolve_object
+    load_scenario(args.scenario)  # refuse a bad scenario before forking
+    obj = resolve_object(name=args.object, file=args.object_file)
+    if args.workers < 1:
+        raise InputError(f"--workers: got {args.workers}, expected >= 1")
+    out = args.out or Path(f"grid-{obj.name}.jsonl")
+    rows = success_map(object_name=args.object, object_file=args.object_file,
+                       scenario_path=args.scenario, out=out,
+                       workers=args.workers)
+    print(f"{obj.name}: outcome of every cell (results in {out})")
+    print(format_map(rows))
+    return 0
+
+
 def make_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="regrasp-drake",
@@ -88,6 +106,17 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", type=Path, metavar="F",
                    help="PNG of the sensors and the object's flight")
     p.set_defaults(func=_cmd_catch)
+
+    p = sub.add_parser("grid", help="the outcome of all 150 cells of the "
+                                    "parameter space for one object")
+    _add_object_args(p)
+    _add_scenario_arg(p)
+    p.add_argument("--out", type=Path, metavar="F",
+                   help="JSON lines, written as cells finish; an existing "
+                        "file is resumed (default grid-<object>.jsonl)")
+    p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+                   metavar="N", help="worker processes (default: all cores)")
+    p.set_defaults(func=_cmd_grid)
     return parser
 
 

@@ -14,7 +14,7 @@ from pydrake.math import RigidTransform
 
 from regrasp_drake.errors import InputError
 from regrasp_drake.planning.catch_plan import (CatchPoint, find_catch_points,
-                                               palm_pose_for)
+                                               palm_poses_for)
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.episode import EpisodeResult, run_episode
 from regrasp_drake.station.scenario import Scenario, load_scenario
@@ -26,11 +26,13 @@ class CatchPlan:
     catch_point: CatchPoint
     X_WG: RigidTransform   # the palm's grasp pose
     q_grasp: list          # the arm's joint angles there, [rad]
+    side: str              # "paper": the θ construction's side; or "mirrored"
 
     def as_dict(self) -> dict:
         return {"catch_point": self.catch_point.as_dict(),
                 "p_WG": [round(float(c), 5) for c in self.X_WG.translation()],
-                "q_grasp": [round(float(c), 5) for c in self.q_grasp]}
+                "q_grasp": [round(float(c), 5) for c in self.q_grasp],
+                "side": self.side}
 
 
 def watch(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
@@ -52,14 +54,17 @@ def plan_catch(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
             f"falls through {scenario.catch.catch_height_m} m with its axis "
             f"horizontal)")
     point = points[0]
-    X_WG = palm_pose_for(point, obj.grasp_radius)
-    q_seed = scenario.throw.knot_q_rad[-1]
-    result = ik.solve(X_WG, q_seed)
-    if not result.success:
-        raise InputError(f"object {obj.name}: catch point at "
-                         f"{point.p_WO.round(3).tolist()} unreachable: "
-                         f"{result.reason()}")
-    return CatchPlan(catch_point=point, X_WG=X_WG, q_grasp=list(result.q))
+    reasons = []
+    for side, X_WG in zip(("paper", "mirrored"),
+                          palm_poses_for(point, obj.grasp_radius)):
+        result = ik.solve(X_WG, scenario.catch.ik_seed_q_rad)
+        if result.success:
+            return CatchPlan(catch_point=point, X_WG=X_WG, q_grasp=list(result.q),
+                             side=side)
+        reasons.append(f"{side} side: {result.reason()}")
+    raise InputError(f"object {obj.name}: catch point at "
+                     f"{point.p_WO.round(3).tolist()} unreachable ("
+                     + "; ".join(reasons) + ")")
 
 
 def catch_once(*, scenario_path=None, object_name=None, object_file=None,

@@ -1,6 +1,7 @@
 import os
 import re
 import tempfile
+import time
 import unittest
 from unittest import mock
 
@@ -111,7 +112,7 @@ class ReplayTest(unittest.TestCase):
     )
     def test_render_draws_the_scene(self):
         png_path = render_html_to_png(
-            self.html_path, os.path.join(self.dir.name, "replay.png"), timeout_s=120
+            self.html_path, os.path.join(self.dir.name, "replay.png"), timeout_s=45
         )
         rgb = matplotlib.image.imread(png_path)[..., :3]
         self.assertEqual(rgb.shape, (600, 800, 3))
@@ -141,11 +142,46 @@ class ReplayTest(unittest.TestCase):
         self.assertEqual(len(np.unique(rgb.reshape(-1, 3), axis=0)), 1)
 
 
+def _is_running(pid, grace_s=2.0):
+    """True if process pid still exists, and is not a zombie, after grace_s (s)
+    for a kill to take effect."""
+    deadline = time.monotonic() + grace_s
+    while True:
+        try:
+            with open(f"/proc/{pid}/stat") as f:
+                state = f.read().rsplit(")", 1)[1].split()[0]
+        except FileNotFoundError:
+            return False
+        if state == "Z":
+            return False
+        if time.monotonic() > deadline:
+            return True
+        time.sleep(0.05)
+
+
 class ReplayErrorsTest(unittest.TestCase):
     def test_missing_chromium_is_a_clear_error(self):
         with mock.patch.object(replay, "CHROMIUM", "/nonexistent/chromium"):
             with self.assertRaisesRegex(ReplayError, "apt-get install -y chromium"):
                 render_html_to_png("x.html", "x.png")
+
+    def test_hanging_chromium_is_ended_and_retried(self):
+        with tempfile.TemporaryDirectory() as d:
+            # A stand-in for Chromium that never finishes, with a helper child.
+            fake = os.path.join(d, "chromium")
+            with open(fake, "w") as f:
+                f.write(f"#!/bin/sh\nsleep 60 &\necho $! >> {d}/pids\nsleep 60\n")
+            os.chmod(fake, 0o755)
+            html = os.path.join(d, "page.html")
+            open(html, "w").close()
+            with mock.patch.object(replay, "CHROMIUM", fake):
+                with self.assertRaisesRegex(ReplayError, "more than 0.5 s.*2 times"):
+                    render_html_to_png(html, os.path.join(d, "x.png"), timeout_s=0.5)
+            with open(os.path.join(d, "pids")) as f:
+                helpers = [int(line) for line in f]
+        self.assertEqual(len(helpers), 2)  # Two attempts,
+        for pid in helpers:  # each with its helper ended too.
+            self.assertFalse(_is_running(pid), pid)
 
     def test_meshcat_disabled_by_environment(self):
         with mock.patch.dict(os.environ, {"DRAKE_ALLOW_NETWORK": "none"}):

@@ -70,31 +70,34 @@ def _interpolate(t, p, v, y_W, k, a) -> CatchPoint:
         tilt=float(abs(y[2])))
 
 
-def palm_pose_for(catch_point: CatchPoint, grasp_radius_m: float,
-                  palm_clearance_m: float = 0.002,
-                  theta_rad: float = 0.3) -> RigidTransform:
-    """The palm's pose under a catch point: palm up, centred under the object's
-    origin, its fingers closing perpendicular to the object's axis (palm +x
-    perpendicular to y_O), on the side the paper's θ construction picks."""
+def palm_poses_for(catch_point: CatchPoint, grasp_radius_m: float,
+                   palm_clearance_m: float = 0.002,
+                   theta_rad: float = 0.3) -> list[RigidTransform]:
+    """The palm's poses under a catch point, preferred first: palm up, centred
+    under the object's origin, the fingertips (palm +x, the paper's z_k)
+    perpendicular to the object's axis; first on the side the paper's θ
+    construction picks (eqs. 2-5), then on the other side (used only when
+    the arm cannot reach the first)."""
     y = catch_point.y_W.copy()
     y[2] = 0.0
     y /= np.linalg.norm(y)
-    x = _closing_direction(catch_point.p_WO, y, theta_rad)
+    x = fingertip_direction(catch_point.p_WO, y, theta_rad)
     p_WP = catch_point.p_WO - np.array(
         [0.0, 0.0, grasp_radius_m + palm_clearance_m])
-    return palm_up_pose(p_WP, x)
+    return [palm_up_pose(p_WP, x), palm_up_pose(p_WP, -x)]
 
 
-def _closing_direction(p_WO, y_horizontal, theta_rad) -> np.ndarray:
-    """The paper's eqs. (2)-(5) in a z-up world: rotate the catch point's
-    horizontal projection by θ about the vertical; the difference points to
-    one side of the axis; the closing direction is that side's component
-    perpendicular to the axis."""
+def fingertip_direction(p_WO, y_horizontal, theta_rad) -> np.ndarray:
+    """The paper's eqs. (2)-(5), its y-up world mapped to our z-up world
+    (x, y, z)_paper -> (x, -z, y): r_p is the catch point's horizontal
+    projection, r_pr the same turned by θ about the vertical, r_R = r_pr - r_p
+    points to the right of the axis, and z_k = y' × (y' × r_R) / |…| is the
+    part of -r_R perpendicular to the axis: the fingertips point left."""
     r_p = np.array([p_WO[0], p_WO[1], 0.0])
     c, s = np.cos(theta_rad), np.sin(theta_rad)
     R_z = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     r_R = R_z @ r_p - r_p
-    x = r_R - np.dot(r_R, y_horizontal) * y_horizontal
-    if np.linalg.norm(x) < 1e-9:  # r_R along the axis: either side will do
-        x = np.cross([0.0, 0.0, 1.0], y_horizontal)
-    return x / np.linalg.norm(x)
+    z_k = np.cross(y_horizontal, np.cross(y_horizontal, r_R))
+    if np.linalg.norm(z_k) < 1e-12:  # r_R along the axis: no side to prefer
+        z_k = np.cross([0.0, 0.0, 1.0], y_horizontal)
+    return z_k / np.linalg.norm(z_k)

@@ -189,7 +189,7 @@ class CatchStateMachine(LeafSystem):
                 q_target = self._park_q
             else:
                 X_WG = self._X_WG.Eval(context)
-                result = self._ik.solve(X_WG, q_end)
+                result = self._ik.solve(X_WG, self._catch.ik_seed_q_rad)
                 if not result.success:
                     return EventStatus.Failed(
                         self, f"grasp pose unreachable: {result.reason()}")

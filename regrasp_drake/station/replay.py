@@ -86,11 +86,16 @@ def render_html_to_png(
     timeout_s: float = 60.0,
     window_size: tuple[int, int] = (800, 600),
     virtual_time_budget_ms: int = 3000,
+    attempts: int = 2,
 ) -> str:
     """Opens html_path in headless Chromium and writes a screenshot to
     png_path, after `virtual_time_budget_ms` of page time (so that the WebGL
-    scene has drawn). Returns png_path. Raises ReplayError if Chromium is
-    missing, fails, or takes longer than timeout_s (s)."""
+    scene has drawn). Returns png_path.
+
+    Headless Chromium with a virtual time budget now and then never finishes
+    (once in some 40 renders here): a render that takes longer than timeout_s
+    (s) is ended and tried again, up to `attempts` times in all. Raises
+    ReplayError if Chromium is missing, fails, or times out every time."""
     if not os.access(CHROMIUM, os.X_OK):
         raise ReplayError(
             f"Chromium not found at {CHROMIUM}: "
@@ -100,16 +105,37 @@ def render_html_to_png(
     png_path = os.path.abspath(os.fspath(png_path))
     if not os.path.isfile(html_path):
         raise ReplayError(f"{html_path}: no such HTML file")
-    if os.path.exists(png_path):
-        os.remove(png_path)
-    with tempfile.TemporaryDirectory(prefix="regrasp-chromium-") as work_dir:
-        user_data_dir = os.path.join(work_dir, "profile")
-        command = chromium_command(
+    for _ in range(attempts):
+        if os.path.exists(png_path):
+            os.remove(png_path)
+        returncode, elapsed, last_line = _run_chromium(
             "file://" + html_path,
             png_path,
-            user_data_dir,
             window_size,
             virtual_time_budget_ms,
+            timeout_s,
+        )
+        if returncode is not None:
+            break
+    if returncode is None:
+        raise ReplayError(
+            f"Chromium took more than {timeout_s} s to render {html_path}, "
+            f"{attempts} times"
+        )
+    if returncode != 0 or not os.path.isfile(png_path):
+        raise ReplayError(
+            f"Chromium failed to render {html_path} "
+            f"(exit {returncode}, {elapsed:.1f} s): {last_line}"
+        )
+    return png_path
+
+
+def _run_chromium(url, png_path, window_size, budget_ms, timeout_s):
+    """Runs one headless Chromium screenshot with a fresh profile. Returns
+    (exit code or None on timeout, seconds taken, last line of its log)."""
+    with tempfile.TemporaryDirectory(prefix="regrasp-chromium-") as work_dir:
+        command = chromium_command(
+            url, png_path, os.path.join(work_dir, "profile"), window_size, budget_ms
         )
         log_path = os.path.join(work_dir, "chromium.log")
         start = time.monotonic()
@@ -133,17 +159,7 @@ def render_html_to_png(
         elapsed = time.monotonic() - start
         with open(log_path, errors="replace") as log:
             lines = log.read().strip().splitlines()
-    if returncode is None:
-        raise ReplayError(
-            f"Chromium took more than {timeout_s} s to render {html_path}"
-        )
-    if returncode != 0 or not os.path.isfile(png_path):
-        last = lines[-1] if lines else "no output"
-        raise ReplayError(
-            f"Chromium failed to render {html_path} "
-            f"(exit {returncode}, {elapsed:.1f} s): {last}"
-        )
-    return png_path
+    return returncode, elapsed, (lines[-1] if lines else "no output")
 
 
 def _kill_session(process: subprocess.Popen):

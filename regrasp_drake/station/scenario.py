@@ -19,11 +19,11 @@ from regrasp_drake.errors import InputError, field_error
 class ContactConfig:
     # Discrete contact solver: "sap" or "similar" or "lagged" (TAMSI fails to
     # converge on throw impacts, see shared/reference/hand-and-drake.md).
-    discrete_contact_approximation: str = "sap"
+    discrete_contact_approximation: str = "similar"
     # Coulomb friction coefficient (static = dynamic) of every surface, [-].
     friction_coefficient: float = 0.9
     # Point-contact stiffness of the object's surfaces, [N/m].
-    point_stiffness_N_per_m: float = 20000.0
+    point_stiffness_N_per_m: float = 100000.0
     # Hunt-Crossley dissipation of the object's surfaces, [s/m].
     hunt_crossley_dissipation_s_per_m: float = 10.0
 
@@ -45,21 +45,22 @@ class ThrowConfig:
     # from the end of the settling; a C2 cubic spline with zero end
     # velocities joins them. The first knot is the arm's initial pose.
     knot_times_s: list[float] = dc.field(
-        default_factory=lambda: [0.0, 0.35, 0.6])
+        default_factory=lambda: [0.0, 0.2687, 0.3693, 0.564])
     knot_q_rad: list[list[float]] = dc.field(
         default_factory=lambda: [
-            [0.0, 0.6, 2.2, 0.0, -0.75, 0.0],
-            [0.0, 0.6, 2.9, 0.0, -1.35, 0.0],
-            [0.0, 0.6, 3.1, 0.0, -1.5, 0.0],
+            [0.0, -0.7404, -0.9010, 0.0, 0.0706, 3.1416],
+            [0.0, -0.4542, -0.5116, 0.0, -0.8712, 3.1416],
+            [0.0, -0.0621, -0.7490, 0.0, -0.5681, 3.1416],
+            [0.0, 0.4295, -1.6445, 0.0, 0.4274, 3.1416],
         ])
     # Time, counted like the knots, at which the fingers open, [s].
-    release_time_s: float = 0.25
+    release_time_s: float = 0.31
     # Hand joint positions while the object is held for the throw, as a
     # fraction of the closed posture, [-].
-    hold_closure: float = 1.0
+    hold_closure: float = 0.5
     # On a watching throw the arm parks out of the flight's way: the throw's
     # last knot with joint 1 turned by this much, [rad].
-    park_joint1_offset_rad: float = 1.3
+    park_joint1_offset_rad: float = 0.7
 
 
 @dc.dataclass
@@ -79,10 +80,14 @@ class SensorConfig:
 class CatchConfig:
     # Height of the object's origin at the catch point, [m]: the hand waits
     # under the watched flight where the object falls through this height.
-    catch_height_m: float = 0.8
+    catch_height_m: float = 0.78
     # A catch point needs the object's axis this close to horizontal,
     # |y_O · z_W| < tolerance, [-].
     tilt_tolerance: float = 0.15
+    # Inverse kinematics of the grasp pose starts from these arm joint angles
+    # (an elbow-down, palm-up posture near the catch region), [rad].
+    ik_seed_q_rad: list[float] = dc.field(
+        default_factory=lambda: [0.0, -0.54, -0.24, 0.0, -0.79, 3.1416])
     # Duration of the arm's move from the release to the grasp position, [s].
     move_to_grasp_s: float = 0.35
     # The hand is at the grasp position when its wrist is this close, [m]
@@ -194,6 +199,8 @@ def validate(s: Scenario) -> Scenario:
     k = s.catch
     _in_range("catch.catch_height_m", k.catch_height_m, 0.2, 1.6, " m")
     _in_range("catch.tilt_tolerance", k.tilt_tolerance, 0.0, 1.0)
+    if len(k.ik_seed_q_rad) != 6:
+        raise field_error("catch.ik_seed_q_rad", k.ik_seed_q_rad, "6 joint angles")
     _in_range("catch.move_to_grasp_s", k.move_to_grasp_s, 0.05, 3.0, " s")
     _in_range("catch.grasp_tolerance_m", k.grasp_tolerance_m, 1e-5, 0.05, " m")
     _in_range("catch.lower_speed_m_per_s", k.lower_speed_m_per_s, 0.01, 5.0,

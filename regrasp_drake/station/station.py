@@ -104,7 +104,8 @@ def build_station(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
     ir = builder.AddNamedSystem("infrared", InfraredSensors(
         plant, [plant.GetFrameByName(f, instances.hand) for f in _IR_FRAMES],
         object_geometries, [s.palm_range_m] * 3 + [s.approach_range_m] * 10,
-        period_s=s.period_s, levels=s.levels))
+        period_s=s.period_s, levels=s.levels,
+        target_bound=(object_body, obj.bounding_radius + 1e-3)))
     builder.Connect(scene_graph.get_query_output_port(),
                     ir.GetInputPort("query_object"))
     bumper = builder.AddNamedSystem("bumper", TactileBumper(
@@ -203,9 +204,9 @@ def _set_object_contact(plant, scene_graph, object_body, scenario):
     for geometry_id in ids:
         props = ProximityProperties(inspector.GetProximityProperties(geometry_id))
         for name, value in (
-                ("point_contact_stiffness", c.point_stiffness_N_per_m),
+                ("point_contact_stiffness", float(c.point_stiffness_N_per_m)),
                 ("hunt_crossley_dissipation",
-                 c.hunt_crossley_dissipation_s_per_m)):
+                 float(c.hunt_crossley_dissipation_s_per_m))):
             if props.HasProperty("material", name):
                 props.UpdateProperty("material", name, value)
             else:
@@ -225,15 +226,34 @@ def _bumper_geometry(plant, scene_graph, hand):
 
 def _initial_object_pose(plant, instances, obj, scenario) -> RigidTransform:
     """The object lies in the palm, its symmetry axis along the palm's y (the
-    knuckle line), resting on the bumper."""
+    knuckle line), its lowest point 1 mm above the bumper, its centre of mass
+    over the palm's centre (so that a lopsided object does not tip off)."""
     context = plant.CreateDefaultContext()
     plant.SetPositions(context, instances.arm,
                        np.array(scenario.throw.knot_q_rad[0], float))
     plant.SetPositions(context, instances.hand, robot.HAND_OPEN)
     X_WP = plant.GetFrameByName("palm_surface", instances.hand).CalcPoseInWorld(
         context)
-    lift = obj.grasp_radius + _BUMPER_THICKNESS_M + 1e-3
-    return X_WP @ RigidTransform([0.0, 0.0, lift])
+    lift = -_lowest_z(obj) + _BUMPER_THICKNESS_M + 1e-3
+    return X_WP @ RigidTransform([-obj.r_cm, -obj.h_cm, lift])
+
+
+def _lowest_z(obj) -> float:
+    """The lowest z of the object's surface in its own frame, [m]."""
+    lowest = 0.0
+    for piece in obj.pieces:
+        z = piece.center[2]
+        if piece.shape == "box":
+            z -= piece.size[2] / 2
+        elif piece.shape == "sphere":
+            z -= piece.radius
+        elif piece.axis == 2:  # a cylinder or capsule standing along z
+            z -= piece.length / 2 + (piece.radius if piece.shape == "capsule"
+                                     else 0.0)
+        else:
+            z -= piece.radius
+        lowest = min(lowest, z)
+    return lowest
 
 
 def initialize(station: Station, scenario: Scenario) -> Simulator:
