@@ -112,16 +112,16 @@ def _progress(n, total, start):
 
 
 def format_map(rows: dict) -> str:
-    """A ✓/✗ grid: rows h_catch, columns h_down."""
-    lines = ["h_catch \\ h_down " + " ".join(f"{d:+.2f}"[1:] if d else " .00"
-                                             for d in H_DOWN_VALUES)]
+    """A ✓/✗ grid: rows h_catch (m), columns h_down (cm); ? not yet run."""
+    lines = ["h_catch m \\ h_down cm " + " ".join(f"{d * 100:>3.0f}"
+                                                for d in H_DOWN_VALUES)]
     for i, h_catch in enumerate(H_CATCH_VALUES):
         marks = []
         for j in range(len(H_DOWN_VALUES)):
             row = rows.get((i, j))
-            marks.append("  ? " if row is None else
-                         "  ✓ " if row["outcome"] == "caught" else "  ✗ ")
-        lines.append(f"{h_catch:>15.2f}  " + " ".join(m[1:] for m in marks))
+            marks.append("?" if row is None else
+                         "✓" if row["outcome"] == "caught" else "✗")
+        lines.append(f"{h_catch:>20.2f}  " + " ".join(f"{m:>3}" for m in marks))
     caught = sum(r["outcome"] == "caught" for r in rows.values())
     lines.append(f"{caught}/{len(rows)} cells catch")
     return "\n".join(lines)

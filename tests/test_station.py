@@ -4,8 +4,14 @@ limits, the state machine's phases and the grasp monitor's verdicts.
 Episodes are simulated once per class (a few seconds each) and shared.
 """
 
+import dataclasses as dc
+import os
+import re
+import tempfile
 import unittest
+from pathlib import Path
 
+import matplotlib.image
 import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RigidTransform, RotationMatrix
@@ -13,6 +19,8 @@ from pydrake.math import RigidTransform, RotationMatrix
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.catch_state_machine import Phase
 from regrasp_drake.station.episode import run_episode
+from regrasp_drake.station.replay import (CHROMIUM, make_meshcat,
+                                          render_html_to_png, save_html)
 from regrasp_drake.station.scenario import load_scenario
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world import robot
@@ -68,20 +76,16 @@ class TestWatchedFlight(unittest.TestCase):
                 self.assertLess(abs(2 * coefficients[0]), 1e-3 * 9.81)
 
     def test_angular_momentum_about_com_conserved(self):
-        logs = self.first.logs
-        window = _free_flight(logs, self.scenario)
-        M = self.obj.spatial_inertia()
-        I_Cm_O = M.Shift(M.get_com()).CalcRotationalInertia().CopyToFullMatrix3()
-        H = []
-        for k in range(len(logs.t))[window]:
-            R = _rotation(logs.object_state[:4, k])
-            w_W = logs.object_state[7:10, k]
-            H.append(R @ I_Cm_O @ R.T @ w_W)
-        H = np.array(H)
-        norm = np.linalg.norm(H[0])
-        self.assertGreater(norm, 1e-6, "the object does not turn")
-        drift = np.max(np.linalg.norm(H - H[0], axis=1)) / norm
-        self.assertLess(drift, 1e-6)
+        """Drake's discrete step is first order: H drifts by O(dt). We check
+        the drift is small at the scenario's step and shrinks in proportion
+        to the step (conservation in the limit)."""
+        drift = _momentum_drift(self.first.logs, self.obj, self.scenario)
+        self.assertLess(drift, 5e-4)
+        fine = dc.replace(self.scenario, time_step_s=self.scenario.time_step_s / 4)
+        fine_drift = _momentum_drift(watch(fine, self.obj, self.ik).logs,
+                                     self.obj, fine)
+        self.assertGreater(drift / fine_drift, 3.0)
+        self.assertLess(drift / fine_drift, 5.0)
 
     def test_flights_bit_identical(self):
         np.testing.assert_array_equal(self.first.logs.object_state,
@@ -108,9 +112,14 @@ class TestCatch(unittest.TestCase):
         watched = watch(cls.scenario, cls.obj, cls.ik)
         cls.plan = plan_catch(cls.scenario, cls.obj, cls.ik, watched)
         c = cls.scenario.catch
+        cls.tmp = tempfile.TemporaryDirectory()
+        cls.html = Path(cls.tmp.name) / "episode.html"
+        meshcat = make_meshcat()
         cls.caught = run_episode(cls.scenario, cls.obj, ik=cls.ik,
                                  X_WG=cls.plan.X_WG,
-                                 catch_parameters=(c.h_catch_m, c.h_down_m))
+                                 catch_parameters=(c.h_catch_m, c.h_down_m),
+                                 meshcat=meshcat)
+        save_html(meshcat, cls.html)
         # The hand waits 0.25 m to the side of the flight: a plain miss.
         X_WG = RigidTransform(cls.plan.X_WG.rotation(),
                               cls.plan.X_WG.translation() + [0.0, 0.25, 0.0])
@@ -124,16 +133,57 @@ class TestCatch(unittest.TestCase):
     def test_phases_in_papers_order(self):
         phases = self.caught.logs.phase.astype(int)
         order = [p for i, p in enumerate(phases) if i == 0 or p != phases[i - 1]]
-        self.assertEqual(order, [int(p) for p in Phase])
+        self.assertEqual(order, [int(p) for p in Phase if p != Phase.FAILED])
 
     def test_object_rests_in_palm_when_caught(self):
         logs = self.caught.logs
-        self.assertTrue(np.all(logs.ir[:3, -1] < self.scenario.monitor.palm_grasp_level))
+        on_palm = (np.all(logs.ir[:3, -1] < self.scenario.monitor.palm_grasp_level)
+                   or logs.bumper[-1] == 1.0)
+        self.assertTrue(on_palm)
         self.assertLess(np.linalg.norm(logs.object_state[10:13, -1]), 0.05)
+        # Still where the hand waited, not on the ground.
+        p_WO = logs.object_state[4:7, -1]
+        self.assertLess(np.linalg.norm(p_WO - self.plan.X_WG.translation()), 0.1)
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.tmp.cleanup()
+
+    def test_replay_html_self_contained(self):
+        text = self.html.read_text()
+        self.assertGreater(len(text), 1_000_000)
+        external = re.findall(r'<(?:script|link)[^>]+(?:src|href)=["\']?https?:',
+                              text)
+        self.assertEqual(external, [])
+
+    @unittest.skipUnless(os.access(CHROMIUM, os.X_OK),
+                         f"{CHROMIUM} absent (apt-get install -y chromium)")
+    def test_replay_renders_a_scene(self):
+        png = Path(self.tmp.name) / "episode.png"
+        render_html_to_png(self.html, png)
+        rgb = (matplotlib.image.imread(png)[..., :3] * 255).astype(np.uint8)
+        colours = np.unique(rgb.reshape(-1, 3), axis=0)
+        self.assertGreater(len(colours), 50, "a blank page")
 
     def test_hand_away_drops(self):
         self.assertEqual(self.missed.outcome, "dropped", self.missed.message)
         self.assertIsNone(self.missed.catch_time_s)
+
+
+def _momentum_drift(logs, obj, scenario) -> float:
+    """Largest change of the angular momentum about the CoM in free flight,
+    relative to its size."""
+    window = _free_flight(logs, scenario)
+    M = obj.spatial_inertia()
+    I_Cm_O = M.Shift(M.get_com()).CalcRotationalInertia().CopyToFullMatrix3()
+    H = []
+    for k in range(len(logs.t))[window]:
+        R = _rotation(logs.object_state[:4, k])
+        H.append(R @ I_Cm_O @ R.T @ logs.object_state[7:10, k])
+    H = np.array(H)
+    norm = np.linalg.norm(H[0])
+    assert norm > 1e-6, "the object does not turn"
+    return float(np.max(np.linalg.norm(H - H[0], axis=1)) / norm)
 
 
 def _rotation(quaternion_wxyz):

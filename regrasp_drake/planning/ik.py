@@ -37,7 +37,8 @@ class IkResult:
 
     @property
     def success(self) -> bool:
-        return (self.position_error_m < 1e-4 and self.rotation_error_rad < 1e-3
+        # The paper's Fig. 9 tolerance on the wrist: 1 mm.
+        return (self.position_error_m < 1e-3 and self.rotation_error_rad < 1e-3
                 and self.within_limits)
 
     def reason(self) -> str:

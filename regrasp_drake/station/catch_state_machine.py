@@ -42,6 +42,7 @@ class Phase(enum.IntEnum):
     LOWER = 4
     RETURN = 5
     HOLD = 6
+    FAILED = 7  # the arm could not reach a commanded pose
 
 
 # Layout of the discrete state vector.
@@ -191,8 +192,8 @@ class CatchStateMachine(LeafSystem):
                 X_WG = self._X_WG.Eval(context)
                 result = self._ik.solve(X_WG, self._catch.ik_seed_q_rad)
                 if not result.success:
-                    return EventStatus.Failed(
-                        self, f"grasp pose unreachable: {result.reason()}")
+                    return self._fail(discrete_state, x,
+                                      f"grasp pose unreachable: {result.reason()}")
                 q_target = result.q
             x[_QGRASP] = q_target
             self._start_segment(x, t, q_end, q_target,
@@ -210,8 +211,8 @@ class CatchStateMachine(LeafSystem):
                                       + [0.0, 0.0, -abs(h_down)])
                 result = self._ik.solve(X_WL, x[_QGRASP])
                 if not result.success:
-                    return EventStatus.Failed(
-                        self, f"lowered pose unreachable: {result.reason()}")
+                    return self._fail(discrete_state, x, "lowered pose "
+                                      f"unreachable: {result.reason()}")
                 duration = max(abs(h_down) / self._catch.lower_speed_m_per_s,
                                self._throw_period_floor())
                 self._start_segment(x, t, x[_QGRASP], result.q, duration,
@@ -230,6 +231,14 @@ class CatchStateMachine(LeafSystem):
     def _throw_period_floor(self):
         # A zero-length lowering (h_down = 0) still lasts one update.
         return 1e-3
+
+    def _fail(self, discrete_state, x, message):
+        """Ends the episode as failed. (Returning EventStatus.Failed from a
+        Python event crashes pydrake 1.51; a termination with the message,
+        and the phase set to FAILED, is read back by the episode.)"""
+        x[_PHASE] = Phase.FAILED
+        discrete_state.set_value(self._state, x)
+        return EventStatus.ReachedTermination(self, message)
 
     @staticmethod
     def _start_segment(x, t, q_a, q_b, duration, phase):

@@ -67,8 +67,10 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
     build_s = time.perf_counter() - t0
     message = ""
     try:
-        simulator.AdvanceTo(scenario.monitor.max_time_s + 1.0)
-    except Exception as e:  # a failed solve or an unreachable pose
+        status = simulator.AdvanceTo(scenario.monitor.max_time_s + 1.0)
+        if status.system() is station.state_machine:  # an unreachable pose
+            message = status.message()
+    except Exception as e:  # a failed contact solve
         message = str(e).strip().splitlines()[0] if str(e).strip() else repr(e)
     wall_s = time.perf_counter() - t0
     if meshcat is not None:

@@ -2,8 +2,8 @@
 
 One typed dataclass tree, loaded from YAML with pydrake's `yaml_load_typed`
 (unknown keys are refused by the loader), then range-checked field by field.
-The defaults below are the shipped scenario; `scenarios/default.yaml` spells
-them out.
+The defaults below are the shipped scenario; a scenario file need only name
+the fields it changes.
 """
 
 import dataclasses as dc

@@ -10,7 +10,7 @@ the grasp monitor; loggers; Meshcat when asked.
 import dataclasses as dc
 
 import numpy as np
-from pydrake.geometry import (HalfSpace, Meshcat, MeshcatVisualizer,
+from pydrake.geometry import (Box, HalfSpace, Meshcat, MeshcatVisualizer,
                               MeshcatVisualizerParams, ProximityProperties,
                               Role, RoleAssign)
 from pydrake.math import RigidTransform
@@ -78,9 +78,10 @@ def build_station(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
     object_body = add_object(plant, obj, friction)
     plant.RegisterCollisionGeometry(
         plant.world_body(), RigidTransform(), HalfSpace(), "ground", friction)
+    # Meshcat does not draw half spaces: the ground is drawn as a slab.
     plant.RegisterVisualGeometry(
-        plant.world_body(), RigidTransform(), HalfSpace(), "ground",
-        [0.55, 0.55, 0.5, 1.0])
+        plant.world_body(), RigidTransform([0.0, 0.0, -0.01]),
+        Box(4.0, 4.0, 0.02), "ground", [0.55, 0.55, 0.5, 1.0])
     plant.mutable_gravity_field().set_gravity_vector(
         [0.0, 0.0, -scenario.gravity_m_per_s2])
     plant.Finalize()
