@@ -45,9 +45,8 @@ def nearest_cell(h_catch: float, h_down: float) -> tuple[int, int]:
 _worker = {}
 
 
-def _init_worker(scenario_path, object_name, object_file):
-    import torch
-    torch.set_num_threads(1)
+def _plan(scenario_path, object_name, object_file):
+    """The watching throw and the offline stage (deterministic)."""
     from regrasp_drake.planning.ik import ArmIk
     from regrasp_drake.station.scenario import load_scenario
     from regrasp_drake.throw_catch import plan_catch, watch
@@ -56,6 +55,13 @@ def _init_worker(scenario_path, object_name, object_file):
     obj = resolve_object(name=object_name, file=object_file)
     ik = ArmIk()
     plan = plan_catch(scenario, obj, ik, watch(scenario, obj, ik))
+    return scenario, obj, ik, plan
+
+
+def _init_worker(scenario_path, object_name, object_file):
+    import torch
+    torch.set_num_threads(1)
+    scenario, obj, ik, plan = _plan(scenario_path, object_name, object_file)
     _worker.update(scenario=scenario, obj=obj, ik=ik, plan=plan)
 
 
@@ -86,6 +92,10 @@ def success_map(*, object_name=None, object_file=None, scenario_path=None,
     todo = [c for c in cells() if c not in done]
     start = time.perf_counter()
     if todo:
+        # Plan once here first: an object with no reachable catch point is
+        # refused before any worker starts (a failing worker initializer
+        # would be restarted by the pool forever).
+        _plan(scenario_path, object_name, object_file)
         ctx = multiprocessing.get_context("fork")
         with ctx.Pool(workers, _init_worker,
                       (scenario_path, object_name, object_file)) as pool, \

@@ -47,23 +47,24 @@ def plan_catch(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     logs = watched.logs
     points = find_catch_points(logs.t, logs.object_state,
                                height_m=scenario.catch.catch_height_m,
-                               tilt_tolerance=scenario.catch.tilt_tolerance)
+                               tilt_tolerance=scenario.catch.tilt_tolerance,
+                               band_m=scenario.catch.height_band_m)
     if not points:
         raise InputError(
-            f"object {obj.name}: no catch point (the watched flight never "
-            f"falls through {scenario.catch.catch_height_m} m with its axis "
-            f"horizontal)")
-    point = points[0]
+            f"object {obj.name}: no catch point (the watched flight's axis is "
+            f"never horizontal within {scenario.catch.height_band_m} m of "
+            f"catch.catch_height_m = {scenario.catch.catch_height_m} m)")
     reasons = []
-    for side, X_WG in zip(("paper", "mirrored"),
-                          palm_poses_for(point, obj.grasp_radius)):
-        result = ik.solve(X_WG, scenario.catch.ik_seed_q_rad)
-        if result.success:
-            return CatchPlan(catch_point=point, X_WG=X_WG, q_grasp=list(result.q),
-                             side=side)
-        reasons.append(f"{side} side: {result.reason()}")
-    raise InputError(f"object {obj.name}: catch point at "
-                     f"{point.p_WO.round(3).tolist()} unreachable ("
+    for point in points:
+        for side, X_WG in zip(("paper", "mirrored"),
+                              palm_poses_for(point, obj.grasp_radius)):
+            result = ik.solve(X_WG, scenario.catch.ik_seed_q_rad)
+            if result.success:
+                return CatchPlan(catch_point=point, X_WG=X_WG,
+                                 q_grasp=list(result.q), side=side)
+            reasons.append(f"at {point.p_WO.round(3).tolist()}, {side} side: "
+                           f"{result.reason()}")
+    raise InputError(f"object {obj.name}: no reachable catch point ("
                      + "; ".join(reasons) + ")")
 
 

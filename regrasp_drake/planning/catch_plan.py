@@ -31,27 +31,41 @@ class CatchPoint:
 
 
 def find_catch_points(t, object_state, *, height_m: float,
-                      tilt_tolerance: float = 0.1) -> list[CatchPoint]:
-    """Catch points of a logged flight (13-row object states, wxyz quaternion,
-    p_WO, w, v). Where the axis stays horizontal through the descent, the
-    catch point is where the object's origin falls through `height_m`; where
-    the axis turns, it is the most horizontal moment of each horizontal
-    passage below the apex and above `height_m` - 0.15 m (refined linearly
-    between samples)."""
+                      tilt_tolerance: float = 0.1,
+                      band_m: float = 0.08) -> list[CatchPoint]:
+    """Catch points of a logged flight (13-row object states: wxyz quaternion,
+    p_WO, w_WO, v_WO), best first.
+
+    In the descent, within `band_m` of `height_m`, the moments where the
+    object's axis is horizontal: each horizontal passage (a run of samples
+    with |y_O · z_W| < tilt_tolerance) gives its sample nearest `height_m`;
+    the points are ordered by their distance to `height_m`."""
     t = np.asarray(t)
     p = object_state[4:7]
     v = object_state[10:13]
     y_W = np.array([_axis(object_state[:4, k]) for k in range(len(t))]).T
     tilt = np.abs(y_W[2])
     apex = int(np.argmax(p[2]))
+    ok = np.zeros(len(t), bool)
+    ok[apex:] = (np.abs(p[2, apex:] - height_m) <= band_m) & (
+        tilt[apex:] < tilt_tolerance) & (v[2, apex:] < 0)
     points = []
-    # The crossing of height_m in the descent.
-    for k in range(apex, len(t) - 1):
-        if p[2, k] >= height_m > p[2, k + 1]:
-            a = (p[2, k] - height_m) / (p[2, k] - p[2, k + 1])
-            points.append(_interpolate(t, p, v, y_W, k, a))
-            break
-    return [c for c in points if c.tilt < tilt_tolerance]
+    k = 0
+    while k < len(t):
+        if not ok[k]:
+            k += 1
+            continue
+        run = [k]
+        while k + 1 < len(t) and ok[k + 1]:
+            k += 1
+            run.append(k)
+        k += 1
+        run = np.array(run)
+        # The horizontal moment nearest the preferred height.
+        best = run[np.argmin(np.abs(p[2, run] - height_m))]
+        points.append(_interpolate(t, p, v, y_W, best, 0.0))
+    points.sort(key=lambda c: abs(c.p_WO[2] - height_m))
+    return points
 
 
 def _axis(quaternion_wxyz) -> np.ndarray:

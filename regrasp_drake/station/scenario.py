@@ -81,6 +81,9 @@ class CatchConfig:
     # Height of the object's origin at the catch point, [m]: the hand waits
     # under the watched flight where the object falls through this height.
     catch_height_m: float = 0.78
+    # Catch points are looked for within this distance of catch_height_m, the
+    # nearest first, [m].
+    height_band_m: float = 0.3
     # A catch point needs the object's axis this close to horizontal,
     # |y_O · z_W| < tolerance, [-].
     tilt_tolerance: float = 0.15
@@ -199,6 +202,7 @@ def validate(s: Scenario) -> Scenario:
     k = s.catch
     _in_range("catch.catch_height_m", k.catch_height_m, 0.2, 1.6, " m")
     _in_range("catch.tilt_tolerance", k.tilt_tolerance, 0.0, 1.0)
+    _in_range("catch.height_band_m", k.height_band_m, 0.0, 1.0, " m")
     if len(k.ik_seed_q_rad) != 6:
         raise field_error("catch.ik_seed_q_rad", k.ik_seed_q_rad, "6 joint angles")
     _in_range("catch.move_to_grasp_s", k.move_to_grasp_s, 0.05, 3.0, " s")
