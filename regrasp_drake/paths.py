@@ -4,4 +4,3 @@ from pathlib import Path
 
 REPO_DIR = Path(__file__).resolve().parents[1]
 MODELS_DIR = REPO_DIR / "models"
-SDF_DIR = REPO_DIR / "sdf"

@@ -45,12 +45,16 @@ def _free_flight(logs, scenario):
     return slice(lo + 3, hi - 3)
 
 
+def _setup(cls):
+    cls.scenario = load_scenario()
+    cls.ik = ArmIk()
+    cls.obj = load_catalogue()[OBJECT]
+
+
 class TestWatchedFlight(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
-        cls.scenario = load_scenario()
-        cls.ik = ArmIk()
-        cls.obj = load_catalogue()[OBJECT]
+        _setup(cls)
         cls.first = watch(cls.scenario, cls.obj, cls.ik)
         cls.second = watch(cls.scenario, cls.obj, cls.ik)
 
@@ -106,9 +110,7 @@ class TestWatchedFlight(unittest.TestCase):
 class TestCatch(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
-        cls.scenario = load_scenario()
-        cls.ik = ArmIk()
-        cls.obj = load_catalogue()[OBJECT]
+        _setup(cls)
         watched = watch(cls.scenario, cls.obj, cls.ik)
         cls.plan = plan_catch(cls.scenario, cls.obj, cls.ik, watched)
         c = cls.scenario.catch

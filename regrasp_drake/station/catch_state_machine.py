@@ -213,8 +213,9 @@ class CatchStateMachine(LeafSystem):
                 if not result.success:
                     return self._fail(discrete_state, x, "lowered pose "
                                       f"unreachable: {result.reason()}")
+                # A zero-length lowering (h_down = 0) still lasts 1 ms.
                 duration = max(abs(h_down) / self._catch.lower_speed_m_per_s,
-                               self._throw_period_floor())
+                               1e-3)
                 self._start_segment(x, t, x[_QGRASP], result.q, duration,
                                     Phase.LOWER)
         elif phase == Phase.LOWER:
@@ -227,10 +228,6 @@ class CatchStateMachine(LeafSystem):
             x[_PHASE] = Phase.HOLD
         discrete_state.set_value(self._state, x)
         return EventStatus.Succeeded()
-
-    def _throw_period_floor(self):
-        # A zero-length lowering (h_down = 0) still lasts one update.
-        return 1e-3
 
     def _fail(self, discrete_state, x, message):
         """Ends the episode as failed. (Returning EventStatus.Failed from a
