@@ -2,7 +2,7 @@ import math
 import unittest
 
 import numpy as np
-from pydrake.geometry import Box, Sphere
+from pydrake.geometry import Box, Capsule, Cylinder, Sphere
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.plant import (
     AddMultibodyPlantSceneGraph,
@@ -19,6 +19,7 @@ from regrasp_drake.station.sensors import (
     InfraredSensors,
     TactileBumper,
     quantize,
+    ray_entry,
     unquantize,
 )
 
@@ -239,6 +240,100 @@ class InfraredSensorsTest(unittest.TestCase):
             InfraredSensors(plant, [frame], [sphere_id], [0.1, 0.2], period_s=0.01)
         with self.assertRaisesRegex(InputError, "period_s"):
             InfraredSensors(plant, [frame], [sphere_id], [0.1], period_s=0.0)
+
+
+class RayEntryTest(unittest.TestCase):
+    """Closed-form ray casting against known answers."""
+
+    def _entry(self, shape, origin, direction):
+        d = np.asarray(direction, float)
+        return float(ray_entry(shape, np.array([origin], float),
+                               np.array([d / np.linalg.norm(d)]))[0])
+
+    def test_known_answers(self):
+        box = Box(0.2, 0.1, 0.04)
+        self.assertAlmostEqual(self._entry(box, [0, 0, -1], [0, 0, 1]), 0.98)
+        self.assertAlmostEqual(self._entry(box, [-1, 0.04, 0], [1, 0, 0]), 0.9)
+        self.assertEqual(self._entry(box, [-1, 0.06, 0], [1, 0, 0]), math.inf)
+        self.assertEqual(self._entry(box, [0, 0, 0.01], [0, 1, 0]), 0.0)
+        self.assertEqual(self._entry(box, [0, 0, 1], [0, 0, 1]), math.inf)
+        cyl = Cylinder(0.05, 0.3)  # along z
+        self.assertAlmostEqual(self._entry(cyl, [-1, 0, 0], [1, 0, 0]), 0.95)
+        self.assertAlmostEqual(self._entry(cyl, [0, 0, -1], [0, 0, 1]), 0.85)
+        self.assertAlmostEqual(self._entry(cyl, [0.03, 0, -1], [0, 0, 1]), 0.85)
+        self.assertEqual(self._entry(cyl, [0.06, 0, -1], [0, 0, 1]), math.inf)
+        self.assertEqual(self._entry(cyl, [-1, 0, 0.16], [1, 0, 0]), math.inf)
+        cap = Capsule(0.05, 0.3)
+        self.assertAlmostEqual(self._entry(cap, [0, 0, -1], [0, 0, 1]), 0.80)
+        self.assertAlmostEqual(self._entry(cap, [-1, 0, 0.15], [1, 0, 0]), 0.95)
+        self.assertAlmostEqual(self._entry(Sphere(0.1), [0, 0, 1], [0, 0, -1]), 0.9)
+
+    def test_agrees_with_drake_signed_distance_for_every_shape(self):
+        """Random poses of a box, a cylinder, a capsule and a sphere: where a
+        sensor reads a distance, the ray's point there lies on the geometry's
+        surface by Drake's signed distance, and the ray is outside just
+        before it; where it reads nothing, no point along the ray is inside."""
+        shapes = [Box(0.12, 0.05, 0.03), Cylinder(0.03, 0.15),
+                  Capsule(0.02, 0.12), Sphere(0.04)]
+        builder = DiagramBuilder()
+        plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=1e-3)
+        body = plant.AddRigidBody(
+            "target", SpatialInertia(0.1, np.zeros(3), UnitInertia.SolidSphere(0.05)))
+        ids = [plant.RegisterCollisionGeometry(
+            body, RigidTransform(RollPitchYaw(0.3 * i, 0.2, -0.4 * i),
+                                 [0.03 * i, -0.02 * i, 0.01]),
+            shape, f"g{i}", CoulombFriction(0.5, 0.5))
+            for i, shape in enumerate(shapes)]
+        rng = np.random.default_rng(7)
+        frames = [plant.AddFrame(FixedOffsetFrame(
+            f"s{k}", plant.world_frame(),
+            RigidTransform(RollPitchYaw(rng.uniform(-0.3, 0.3, 3)),
+                           [rng.uniform(-0.05, 0.05), rng.uniform(-0.05, 0.05),
+                            -0.25]))) for k in range(8)]
+        plant.Finalize()
+        diagram = builder.Build()
+        context = diagram.CreateDefaultContext()
+        plant_context = plant.GetMyMutableContextFromRoot(context)
+        inspector = scene_graph.model_inspector()
+        range_m, levels = 0.45, 100000  # fine levels: 4.5 µm
+        for geometry_id in ids:
+            name = str(inspector.GetShape(geometry_id))
+            ir = InfraredSensors(plant, frames, [geometry_id], [range_m] * 8,
+                                 period_s=0.01, levels=levels,
+                                 inspector=inspector)
+            self.assertEqual(len(ir._target_ids), 0, name)  # all closed form
+            hits = misses = 0
+            for trial in range(20):
+                plant.SetFreeBodyPose(plant_context, body, RigidTransform(
+                    RollPitchYaw(rng.uniform(-np.pi, np.pi, 3)),
+                    [rng.uniform(-0.04, 0.04), rng.uniform(-0.04, 0.04),
+                     rng.uniform(-0.05, 0.1)]))
+                query = scene_graph.get_query_output_port().Eval(
+                    scene_graph.GetMyContextFromRoot(context))
+
+                def signed_distance(p_WQ):
+                    return min(d.distance for d in query.ComputeSignedDistanceToPoint(
+                        p_WQ, threshold=1.0) if d.id_G == geometry_id)
+
+                read = ir.read_levels(query)
+                p_WS, z_W = ir._rays(query)
+                for level, p, z in zip(read, p_WS, z_W):
+                    if level < levels:
+                        hits += 1
+                        s_lo = level * range_m / levels  # the bin's start
+                        s_hi = s_lo + range_m / levels
+                        # Inside (or on) the surface at the bin's end, outside
+                        # before its start.
+                        self.assertLess(signed_distance(p + s_hi * z), 1e-9, name)
+                        if level > 0:
+                            self.assertGreater(signed_distance(p + (s_lo - 1e-6) * z),
+                                               0.0, name)
+                    else:
+                        misses += 1
+                        for s in np.linspace(0.0, range_m, 301):
+                            self.assertGreater(signed_distance(p + s * z), -1e-4, name)
+            self.assertGreater(hits, 10, name)  # the comparison saw the shape
+            self.assertGreater(misses, 10, name)
 
 
 class TactileBumperTest(unittest.TestCase):

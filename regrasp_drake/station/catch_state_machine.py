@@ -18,9 +18,15 @@ The arm is commanded in joint space: every phase is a segment from q_a to q_b
 with a quintic time law (zero end velocity and acceleration), except the
 throw, which follows a C2 cubic spline through the scenario's knots. The
 grasp and lowered joint angles are solved by inverse kinematics once, when
-the phase that needs them starts. Transitions run in a periodic discrete
-update at the sensors' rate; the outputs are computed from the discrete state
-and time, and cached.
+the phase that needs them starts.
+
+One periodic discrete update runs at the plant's time step: at the sensors'
+rate it first makes the phase transitions, then, every step, it writes the
+arm's and fingers' references for the next step into discrete state, which
+the reference output ports expose directly. So no Python runs when the plant
+or the controller reads a reference (a computed output port would run
+several times per step), and the references are the same as if they were
+evaluated at the step's time.
 """
 
 import enum
@@ -46,11 +52,11 @@ class Phase(enum.IntEnum):
 
 
 # Layout of the discrete state vector.
-_PHASE, _T0, _T, _T_CLOSE, _T_OPEN, _H_DOWN = range(6)
-_QA = slice(6, 12)
-_QB = slice(12, 18)
-_QGRASP = slice(18, 24)
-_SIZE = 24
+_PHASE, _T0, _T, _T_CLOSE, _T_OPEN, _H_DOWN, _TICK = range(7)
+_QA = slice(7, 13)
+_QB = slice(13, 19)
+_QGRASP = slice(19, 25)
+_SIZE = 25
 
 
 def _quintic(tau):
@@ -111,28 +117,29 @@ class CatchStateMachine(LeafSystem):
         x0[_T_OPEN] = self._t_release
         x0[_QA] = x0[_QB] = self._q_start
         x0[_T] = 1.0
+        self._x0 = x0
         self._state = self.DeclareDiscreteState(x0)
-        self.DeclarePeriodicDiscreteUpdateEvent(
-            scenario.sensors.period_s, 0.0, self._update)
+        # The references for the current step: arm (q, v), arm acceleration,
+        # fingers (q, v).
+        q_arm, v_arm, a_arm = self._arm_reference(x0, 0.0)
+        self._arm_ref = self.DeclareDiscreteState(np.concatenate([q_arm, v_arm]))
+        self._acc_ref = self.DeclareDiscreteState(a_arm)
+        self._hand_ref = self.DeclareDiscreteState(
+            np.concatenate(self._hand_reference(x0, 0.0)))
+        self._dt = scenario.time_step_s
+        self._ticks_per_sample = round(scenario.sensors.period_s / self._dt)
+        self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
 
-        state_ticket = [self.xd_ticket(), self.time_ticket()]
-        self.DeclareVectorOutputPort(
-            "arm_desired_state", 12, self._calc_arm_state,
-            prerequisites_of_calc=set(state_ticket))
-        self.DeclareVectorOutputPort(
-            "arm_desired_acceleration", 6, self._calc_arm_acceleration,
-            prerequisites_of_calc=set(state_ticket))
-        self.DeclareVectorOutputPort(
-            "hand_desired_state", 2 * n_hand, self._calc_hand_state,
-            prerequisites_of_calc=set(state_ticket))
+        self.DeclareStateOutputPort("arm_desired_state", self._arm_ref)
+        self.DeclareStateOutputPort("arm_desired_acceleration", self._acc_ref)
+        self.DeclareStateOutputPort("hand_desired_state", self._hand_ref)
         self.DeclareVectorOutputPort(
             "phase", 1, self._calc_phase,
             prerequisites_of_calc={self.xd_ticket()})
 
-    # ---- arm reference -------------------------------------------------
-    def _arm_reference(self, context):
-        x = context.get_discrete_state(self._state).value()
-        t = context.get_time()
+    # ---- references ----------------------------------------------------
+    def _arm_reference(self, x, t):
+        """The arm's (q, v, v̇) reference at time t in state x."""
         if x[_PHASE] == Phase.THROW:
             tau = min(t - self._t_throw, self._throw.knot_times_s[-1])
             return (self._spline.value(tau).ravel(),
@@ -143,27 +150,16 @@ class CatchStateMachine(LeafSystem):
         dq = x[_QB] - x[_QA]
         return x[_QA] + s * dq, ds / T * dq, dds / T**2 * dq
 
-    def _calc_arm_state(self, context, output: BasicVector):
-        q, v, _ = self._arm_reference(context)
-        output.SetFromVector(np.concatenate([q, v]))
-
-    def _calc_arm_acceleration(self, context, output: BasicVector):
-        output.SetFromVector(self._arm_reference(context)[2])
-
-    # ---- finger reference ----------------------------------------------
-    def _calc_hand_state(self, context, output: BasicVector):
-        """Fingers ramp at their maximum speed toward the hold posture (from
-        t_close while settling and throwing), open (from the release), or
-        closed (from t_close once catching)."""
-        x = context.get_discrete_state(self._state).value()
-        t = context.get_time()
+    def _hand_reference(self, x, t):
+        """The fingers' (q, v) reference at time t in state x: they ramp at
+        their maximum speed toward the hold posture (from t_close while
+        settling and throwing), open (from the release), or closed (from
+        t_close once catching)."""
         if x[_PHASE] <= Phase.THROW and t < self._t_release:
-            q, v = self._ramp(self._open, self._hold, t - x[_T_CLOSE])
-        elif x[_PHASE] < Phase.LOWER:
-            q, v = self._ramp(self._hold, self._open, t - self._t_release)
-        else:
-            q, v = self._ramp(self._open, self._closed, t - x[_T_CLOSE])
-        output.SetFromVector(np.concatenate([q, v]))
+            return self._ramp(self._open, self._hold, t - x[_T_CLOSE])
+        if x[_PHASE] < Phase.LOWER:
+            return self._ramp(self._hold, self._open, t - self._t_release)
+        return self._ramp(self._open, self._closed, t - x[_T_CLOSE])
 
     def _ramp(self, q_from, q_to, elapsed):
         delta = q_to - q_from
@@ -180,6 +176,21 @@ class CatchStateMachine(LeafSystem):
     def _update(self, context, discrete_state):
         x = context.get_discrete_state(self._state).value().copy()
         t = context.get_time()
+        status = EventStatus.Succeeded()
+        if int(x[_TICK]) % self._ticks_per_sample == 0:
+            status = self._transition(context, x, t)
+        x[_TICK] += 1
+        discrete_state.set_value(self._state, x)
+        # The references for the next step.
+        q, v, a = self._arm_reference(x, t + self._dt)
+        discrete_state.set_value(self._arm_ref, np.concatenate([q, v]))
+        discrete_state.set_value(self._acc_ref, a)
+        discrete_state.set_value(self._hand_ref, np.concatenate(
+            self._hand_reference(x, t + self._dt)))
+        return status
+
+    def _transition(self, context, x, t):
+        """Fig. 9's transitions, at the sensors' rate; updates x in place."""
         phase = Phase(int(x[_PHASE]))
         segment_done = t >= x[_T0] + x[_T]
         if phase == Phase.SETTLE and t >= self._t_throw:
@@ -192,8 +203,8 @@ class CatchStateMachine(LeafSystem):
                 X_WG = self._X_WG.Eval(context)
                 result = self._ik.solve(X_WG, self._catch.ik_seed_q_rad)
                 if not result.success:
-                    return self._fail(discrete_state, x,
-                                      f"grasp pose unreachable: {result.reason()}")
+                    return self._fail(x, f"grasp pose unreachable: "
+                                      f"{result.reason()}")
                 q_target = result.q
             x[_QGRASP] = q_target
             self._start_segment(x, t, q_end, q_target,
@@ -211,8 +222,8 @@ class CatchStateMachine(LeafSystem):
                                       + [0.0, 0.0, -abs(h_down)])
                 result = self._ik.solve(X_WL, x[_QGRASP])
                 if not result.success:
-                    return self._fail(discrete_state, x, "lowered pose "
-                                      f"unreachable: {result.reason()}")
+                    return self._fail(x, "lowered pose unreachable: "
+                                      f"{result.reason()}")
                 # A zero-length lowering (h_down = 0) still lasts 1 ms.
                 duration = max(abs(h_down) / self._catch.lower_speed_m_per_s,
                                1e-3)
@@ -221,20 +232,19 @@ class CatchStateMachine(LeafSystem):
         elif phase == Phase.LOWER:
             stop = self._palm_level(context) < self._catch.palm_stop_level
             if segment_done or stop:
-                q_now, _, _ = self._arm_reference(context)
+                q_now, _, _ = self._arm_reference(x, t)
                 self._start_segment(x, t, q_now, x[_QGRASP],
                                     self._catch.return_s, Phase.RETURN)
         elif phase == Phase.RETURN and segment_done:
             x[_PHASE] = Phase.HOLD
-        discrete_state.set_value(self._state, x)
         return EventStatus.Succeeded()
 
-    def _fail(self, discrete_state, x, message):
+    def _fail(self, x, message):
         """Ends the episode as failed. (Returning EventStatus.Failed from a
         Python event crashes pydrake 1.51; a termination with the message,
-        and the phase set to FAILED, is read back by the episode.)"""
+        and the phase set to FAILED, is read back by the episode.) The arm
+        holds its last reference."""
         x[_PHASE] = Phase.FAILED
-        discrete_state.set_value(self._state, x)
         return EventStatus.ReachedTermination(self, message)
 
     @staticmethod

@@ -196,6 +196,10 @@ def validate(s: Scenario) -> Scenario:
               -math.pi, math.pi, " rad")
     n = s.sensors
     _in_range("sensors.period_s", n.period_s, s.time_step_s, 0.05, " s")
+    ratio = n.period_s / s.time_step_s
+    if abs(ratio - round(ratio)) > 1e-9 * ratio:
+        raise field_error("sensors.period_s", n.period_s,
+                          f"a whole multiple of time_step_s = {s.time_step_s} s")
     _in_range("sensors.palm_range_m", n.palm_range_m, 0.01, 1.0, " m")
     _in_range("sensors.approach_range_m", n.approach_range_m, 0.40, 2.0, " m")
     _in_range("sensors.levels", n.levels, 2, 1e6)

@@ -10,7 +10,8 @@ import math
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.geometry import GeometryId, QueryObject
+from pydrake.geometry import (Box, Capsule, Cylinder, GeometryId, QueryObject,
+                              SceneGraphInspector, Sphere)
 from pydrake.multibody.plant import ContactResults, MultibodyPlant
 from pydrake.multibody.tree import Frame
 from pydrake.systems.framework import LeafSystem
@@ -87,6 +88,90 @@ def trace_ray(
     return math.inf
 
 
+def _sphere_hits(o, d, center, radius):
+    """Entry distance along rays (origins o, unit directions d: N×3, in the
+    sphere's frame) into a ball: 0 for an origin inside, inf for a miss."""
+    oc = o - center
+    b = np.einsum("ij,ij->i", oc, d)
+    c = np.einsum("ij,ij->i", oc, oc) - radius * radius
+    disc = b * b - c
+    with np.errstate(invalid="ignore"):
+        root = np.sqrt(disc)
+    entry = -b - root
+    hit = (disc >= 0) & (-b + root >= 0)
+    return np.where(c <= 0, 0.0, np.where(hit, np.maximum(entry, 0.0), np.inf))
+
+
+def _slab_interval(o, d, half):
+    """Per ray, the parameter interval [enter, leave] inside the slabs
+    |x_k| <= half_k for the axes k given by `half` (nan: that axis unbounded)."""
+    enter = np.full(len(o), -np.inf)
+    leave = np.full(len(o), np.inf)
+    for k, h in enumerate(half):
+        if np.isnan(h):
+            continue
+        ok, dk = o[:, k], d[:, k]
+        parallel = np.abs(dk) < 1e-15
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1 = (-h - ok) / dk
+            t2 = (h - ok) / dk
+        lo = np.where(parallel, np.where(np.abs(ok) <= h, -np.inf, np.inf),
+                      np.minimum(t1, t2))
+        hi = np.where(parallel, np.where(np.abs(ok) <= h, np.inf, -np.inf),
+                      np.maximum(t1, t2))
+        enter = np.maximum(enter, lo)
+        leave = np.minimum(leave, hi)
+    return enter, leave
+
+
+def _cylinder_interval(o, d, radius, half_length):
+    """Per ray, [enter, leave] inside a solid cylinder along z."""
+    enter, leave = _slab_interval(o, d, (np.nan, np.nan, half_length))
+    a = d[:, 0] ** 2 + d[:, 1] ** 2
+    b = o[:, 0] * d[:, 0] + o[:, 1] * d[:, 1]
+    c = o[:, 0] ** 2 + o[:, 1] ** 2 - radius * radius
+    disc = b * b - a * c
+    parallel = a < 1e-30
+    with np.errstate(divide="ignore", invalid="ignore"):
+        root = np.sqrt(np.maximum(disc, 0.0))
+        lo = np.where(parallel, np.where(c <= 0, -np.inf, np.inf), (-b - root) / a)
+        hi = np.where(parallel, np.where(c <= 0, np.inf, -np.inf), (-b + root) / a)
+    miss = ~parallel & (disc < 0)
+    lo = np.where(miss, np.inf, lo)
+    hi = np.where(miss, -np.inf, hi)
+    return np.maximum(enter, lo), np.minimum(leave, hi)
+
+
+def _interval_entry(enter, leave):
+    """The entry distance (>= 0) of rays into a convex set they cross on
+    [enter, leave]; inf when they miss it or it lies behind them."""
+    hit = (enter <= leave) & (leave >= 0)
+    return np.where(hit, np.maximum(enter, 0.0), np.inf)
+
+
+def ray_entry(shape, o, d) -> np.ndarray:
+    """The distance along each ray (origins o, unit directions d: N×3, in the
+    shape's frame G) to where it enters a Drake Box, Sphere, Cylinder or
+    Capsule: 0 for an origin inside it, inf for a miss. Exact (closed form).
+    Returns None for other shapes."""
+    if isinstance(shape, Sphere):
+        return _sphere_hits(o, d, np.zeros(3), shape.radius())
+    if isinstance(shape, Box):
+        return _interval_entry(*_slab_interval(o, d, shape.size() / 2.0))
+    if isinstance(shape, Cylinder):
+        return _interval_entry(*_cylinder_interval(
+            o, d, shape.radius(), shape.length() / 2.0))
+    if isinstance(shape, Capsule):
+        # A capsule is the union of its cylinder and its two end balls.
+        half = shape.length() / 2.0
+        r = shape.radius()
+        return np.minimum.reduce([
+            _interval_entry(*_cylinder_interval(o, d, r, half)),
+            _sphere_hits(o, d, np.array([0.0, 0.0, half]), r),
+            _sphere_hits(o, d, np.array([0.0, 0.0, -half]), r)])
+    return None
+
+
 class InfraredSensors(LeafSystem):
     """Infrared range sensors, each a ray from its frame's origin along the
     frame's +z axis, reading the distance to the first target geometry as a
@@ -107,11 +192,17 @@ class InfraredSensors(LeafSystem):
         period_s: float,
         levels: int = 1000,
         target_bound: tuple | None = None,
+        inspector: SceneGraphInspector | None = None,
     ):
         """`target_bound`, optional: (body, radius_m), a sphere about the
         body's frame origin that holds every target geometry. Rays that miss
         it read nothing without tracing, and the others start tracing where
-        they enter it (the same readings, far fewer distance queries)."""
+        they enter it (the same readings, far fewer distance queries).
+
+        `inspector`, optional: the SceneGraph's model inspector. With it,
+        target boxes, spheres, cylinders and capsules are ray-cast in closed
+        form (all 13 rays at once) and only other shapes are sphere-traced;
+        without it every target is sphere-traced."""
         LeafSystem.__init__(self)
         n = len(sensor_frames)
         if n == 0:
@@ -132,6 +223,18 @@ class InfraredSensors(LeafSystem):
         self._levels = levels
         self._ranges_m = [float(r) for r in ranges_m]
         self._target_ids = frozenset(target_geometry_ids)
+        # Closed-form targets: (geometry frame id, X_FG, shape).
+        self._cast = []
+        if inspector is not None:
+            traced = []
+            for geometry_id in target_geometry_ids:
+                shape = inspector.GetShape(geometry_id)
+                if ray_entry(shape, np.zeros((1, 3)), np.ones((1, 3))) is None:
+                    traced.append(geometry_id)
+                    continue
+                self._cast.append((inspector.GetFrameId(geometry_id),
+                                   inspector.GetPoseInFrame(geometry_id), shape))
+            self._target_ids = frozenset(traced)
         self._bound = None
         if target_bound is not None:
             body, radius_m = target_bound
@@ -168,7 +271,36 @@ class InfraredSensors(LeafSystem):
 
     def read_levels(self, query_object: QueryObject) -> np.ndarray:
         """Returns each sensor's level for the geometry poses in query_object."""
-        readings = np.empty(len(self._ranges_m))
+        distances = np.full(len(self._ranges_m), np.inf)
+        if self._cast:
+            distances = self._cast_distances(query_object)
+        if self._target_ids:
+            distances = np.minimum(distances, self._trace_distances(query_object))
+        return np.array([quantize(s, r, self._levels)
+                         for s, r in zip(distances, self._ranges_m)])
+
+    def _rays(self, query_object):
+        """Every sensor's ray in the world: origins and unit directions (N×3)."""
+        X_WS = [query_object.GetPoseInWorld(frame_id) @ X_BS
+                for frame_id, X_BS in zip(self._frame_ids, self._X_BS)]
+        return (np.array([X.translation() for X in X_WS]),
+                np.array([X.rotation().col(2) for X in X_WS]))
+
+    def _cast_distances(self, query_object):
+        """Closed-form distances to the first cast target (inf: none)."""
+        p_WS, z_W = self._rays(query_object)
+        distances = np.full(len(p_WS), np.inf)
+        for frame_id, X_FG, shape in self._cast:
+            X_GW = (query_object.GetPoseInWorld(frame_id) @ X_FG).inverse()
+            R_GW = X_GW.rotation().matrix()
+            o = p_WS @ R_GW.T + X_GW.translation()
+            d = z_W @ R_GW.T
+            distances = np.minimum(distances, ray_entry(shape, o, d))
+        return distances
+
+    def _trace_distances(self, query_object):
+        """Sphere-traced distances to the first traced target (inf: none)."""
+        readings = np.full(len(self._ranges_m), np.inf)
         if self._bound is not None:
             p_WC = query_object.GetPoseInWorld(self._bound[0]).translation()
         for i, (frame_id, X_BS, range_m) in enumerate(
@@ -180,7 +312,6 @@ class InfraredSensors(LeafSystem):
             if self._bound is not None:
                 s0 = _sphere_entry(p_WS, z_W, p_WC, self._bound[1])
                 if s0 >= range_m:
-                    readings[i] = self._levels
                     continue
             tolerance_m = min(_HIT_TOLERANCE_M, 0.1 * range_m / self._levels)
             distance_m = s0 + trace_ray(
@@ -191,7 +322,7 @@ class InfraredSensors(LeafSystem):
                 self._target_ids,
                 tolerance_m,
             )
-            readings[i] = quantize(distance_m, range_m, self._levels)
+            readings[i] = distance_m
         return readings
 
     def _sample(self, context, discrete_state):

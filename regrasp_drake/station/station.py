@@ -106,7 +106,8 @@ def build_station(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
         plant, [plant.GetFrameByName(f, instances.hand) for f in _IR_FRAMES],
         object_geometries, [s.palm_range_m] * 3 + [s.approach_range_m] * 10,
         period_s=s.period_s, levels=s.levels,
-        target_bound=(object_body, obj.bounding_radius + 1e-3)))
+        target_bound=(object_body, obj.bounding_radius + 1e-3),
+        inspector=scene_graph.model_inspector()))
     builder.Connect(scene_graph.get_query_output_port(),
                     ir.GetInputPort("query_object"))
     bumper = builder.AddNamedSystem("bumper", TactileBumper(
