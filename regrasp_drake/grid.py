@@ -7,13 +7,13 @@ paper gives h_catch in [0, 0.40] with a tolerance of 0.04 and 10 states: the
 object touches the palm). h_down: the paper's [-0.14, -0.01] with 0.01 gives 14
 states for its 15; we add 0.00 (no lowering), as its Fig. 9 allows.
 
-A success map runs one catch episode per cell, in parallel over worker
-processes (each builds its own diagram; torch is held to one thread), writes
-each result as a JSON line as soon as it is known, and resumes from that file.
+A success map runs one catch episode per cell. The cells share one simulated
+throw up to the moment their parameters are first read, and fork from there
+(station/branching.py), `workers` at a time; each result is written as a JSON
+line as soon as it is known, and a run resumes from that file.
 """
 
 import json
-import multiprocessing
 import os
 import sys
 import time
@@ -41,83 +41,81 @@ def nearest_cell(h_catch: float, h_down: float) -> tuple[int, int]:
             int(np.argmin(np.abs(H_DOWN_VALUES - h_down))))
 
 
-# ---- success maps, in worker processes ------------------------------------
-_worker = {}
-
-
-def _plan(scenario_path, object_name, object_file):
+# ---- success maps ----------------------------------------------------------
+def plan_object(scenario, obj, ik):
     """The watching throw and the offline stage (deterministic)."""
-    from regrasp_drake.planning.ik import ArmIk
-    from regrasp_drake.station.scenario import load_scenario
     from regrasp_drake.throw_catch import plan_catch, watch
-    from regrasp_drake.world.objects import resolve_object
-    scenario = load_scenario(scenario_path)
-    obj = resolve_object(name=object_name, file=object_file)
-    ik = ArmIk()
-    plan = plan_catch(scenario, obj, ik, watch(scenario, obj, ik))
-    return scenario, obj, ik, plan
+    return plan_catch(scenario, obj, ik, watch(scenario, obj, ik))
 
 
-def _init_worker(scenario_path, object_name, object_file):
-    import torch
-    torch.set_num_threads(1)
-    scenario, obj, ik, plan = _plan(scenario_path, object_name, object_file)
-    _worker.update(scenario=scenario, obj=obj, ik=ik, plan=plan)
+def read_rows(path: Path) -> dict:
+    """{cell: row} from a JSON-lines file; a line cut by a kill is skipped
+    (its cell runs again)."""
+    done = {}
+    if path.exists():
+        for line in path.read_text().splitlines():
+            try:
+                row = json.loads(line)
+                done[tuple(row["cell"])] = row
+            except (json.JSONDecodeError, KeyError, TypeError):
+                continue
+    return done
 
 
-def _run_cell(cell):
-    from regrasp_drake.station.episode import run_episode
-    h_catch, h_down = cell_parameters(cell)
-    w = _worker
-    result = run_episode(w["scenario"], w["obj"], ik=w["ik"],
-                         X_WG=w["plan"].X_WG,
-                         catch_parameters=(h_catch, h_down))
-    return {"cell": list(cell), "h_catch": h_catch, "h_down": h_down,
-            "outcome": result.outcome, "sim_time_s": round(result.sim_time_s, 4),
-            "wall_s": round(result.wall_s, 3)}
+def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
+            progress=True) -> dict:
+    """Runs every cell of `obj`'s success map not yet in `out` (JSON lines,
+    appended and flushed as each cell finishes); returns {cell: row}.
+
+    The cells share one simulated throw up to their triggers (see
+    station/branching.py); `workers` simulations run at once."""
+    from regrasp_drake.station.branching import run_cells
+    out = Path(out)
+    done = read_rows(out)
+    todo = [c for c in cells() if c not in done]
+    if not todo:
+        return done
+    start = time.perf_counter()
+    with out.open("a") as f:
+        def write(i, row):
+            row = {"cell": list(todo[i])} | row
+            f.write(json.dumps(row) + "\n")
+            f.flush()
+            os.fsync(f.fileno())
+            done[todo[i]] = row
+            if progress:
+                _progress(len(done) - (len(cells()) - len(todo)), len(todo),
+                          start, obj.name)
+        run_cells(scenario, obj, ik=ik, X_WG=plan.X_WG,
+                  parameters=[cell_parameters(c) for c in todo],
+                  workers=workers, on_result=write)
+    if progress:
+        print(file=sys.stderr)
+    return done
 
 
 def success_map(*, object_name=None, object_file=None, scenario_path=None,
                 out: Path, workers: int = 2, progress=True) -> dict:
-    """Runs every cell not yet in `out` (JSON lines); returns {cell: row}."""
-    out = Path(out)
-    done = {}
-    if out.exists():
-        for line in out.read_text().splitlines():
-            try:
-                row = json.loads(line)
-            except json.JSONDecodeError:
-                continue  # a line cut by a kill: the cell runs again
-            done[tuple(row["cell"])] = row
-    todo = [c for c in cells() if c not in done]
-    start = time.perf_counter()
-    if todo:
-        # Plan once here first: an object with no reachable catch point is
-        # refused before any worker starts (a failing worker initializer
-        # would be restarted by the pool forever).
-        _plan(scenario_path, object_name, object_file)
-        ctx = multiprocessing.get_context("fork")
-        with ctx.Pool(workers, _init_worker,
-                      (scenario_path, object_name, object_file)) as pool, \
-                out.open("a") as f:
-            for n, row in enumerate(pool.imap_unordered(_run_cell, todo), 1):
-                f.write(json.dumps(row) + "\n")
-                f.flush()
-                os.fsync(f.fileno())
-                done[tuple(row["cell"])] = row
-                if progress:
-                    _progress(n, len(todo), start)
-        if progress:
-            print(file=sys.stderr)
-    return done
+    """`regrasp-drake grid`: the success map of one object, resumable."""
+    import torch
+    from regrasp_drake.planning.ik import ArmIk
+    from regrasp_drake.station.scenario import load_scenario
+    from regrasp_drake.world.objects import resolve_object
+    torch.set_num_threads(1)
+    scenario = load_scenario(scenario_path)
+    obj = resolve_object(name=object_name, file=object_file)
+    ik = ArmIk()
+    plan = plan_object(scenario, obj, ik)
+    return run_map(scenario, obj, ik, plan, out, workers=workers,
+                   progress=progress)
 
 
-def _progress(n, total, start):
+def _progress(n, total, start, label=""):
     elapsed = time.perf_counter() - start
-    rate = n / elapsed
+    rate = n / elapsed if elapsed > 0 else 0.0
     left = (total - n) / rate if rate > 0 else float("inf")
     bar = "#" * int(30 * n / total)
-    print(f"\r[{bar:<30}] {n}/{total} cells, {rate:.2f} cells/s, "
+    print(f"\r{label} [{bar:<30}] {n}/{total} cells, {rate:.2f} cells/s, "
           f"{left:.0f} s left", end="", file=sys.stderr, flush=True)
 
 

@@ -38,6 +38,7 @@ class EpisodeResult:
     catch_time_s: float | None  # when the grasp was recognized, [s]
     message: str
     logs: Logs | None
+    p_WO_final: list | None = None  # the object's final position, [m]
 
     @property
     def caught(self) -> bool:
@@ -65,23 +66,13 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
         meshcat.StartRecording(set_visualizations_while_recording=False)
     simulator = initialize(station, scenario)
     build_s = time.perf_counter() - t0
-    message = ""
-    try:
-        status = simulator.AdvanceTo(scenario.monitor.max_time_s + 1.0)
-        if status.system() is station.state_machine:  # an unreachable pose
-            message = status.message()
-    except Exception as e:  # a failed contact solve
-        message = str(e).strip().splitlines()[0] if str(e).strip() else repr(e)
+    message = advance_to_outcome(simulator, station, scenario)
     wall_s = time.perf_counter() - t0
     if meshcat is not None:
         meshcat.StopRecording()
         meshcat.PublishRecording()
     context = simulator.get_context()
-    monitor_state = station.monitor.GetOutputPort("monitor_state").Eval(
-        station.monitor.GetMyContextFromRoot(context))
-    outcome = "failed" if message else GraspMonitor.outcome(
-        monitor_state).name.lower()
-    grasp_t = GraspMonitor.grasp_time(monitor_state)
+    outcome, grasp_t = read_outcome(station, context, message)
     logs = _read_logs(station, context)
     h = logs.params[:, -1] if logs.params.shape[1] else (None, None)
     return EpisodeResult(
@@ -89,8 +80,35 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
         h_catch=None if X_WG is None else float(h[0]),
         h_down=None if X_WG is None else float(h[1]),
         sim_time_s=context.get_time(), wall_s=wall_s, build_s=build_s,
-        catch_time_s=grasp_t if grasp_t >= 0 else None, message=message,
-        logs=logs)
+        catch_time_s=grasp_t, message=message, logs=logs,
+        p_WO_final=station.plant.EvalBodyPoseInWorld(
+            station.plant.GetMyContextFromRoot(context),
+            station.object_body).translation().tolist())
+
+
+def advance_to_outcome(simulator, station, scenario, t_final=None) -> str:
+    """Advances until the grasp monitor (or a failure) ends the episode, or
+    to t_final. Returns "" or the failure's message: an unreachable pose, or
+    a failed contact solve (recorded, never raised)."""
+    if t_final is None:
+        t_final = scenario.monitor.max_time_s + 1.0
+    try:
+        status = simulator.AdvanceTo(t_final)
+        if status.system() is station.state_machine:  # an unreachable pose
+            return status.message()
+    except Exception as e:  # a failed contact solve
+        return str(e).strip().splitlines()[0] if str(e).strip() else repr(e)
+    return ""
+
+
+def read_outcome(station, context, message: str) -> tuple[str, float | None]:
+    """The episode's outcome name and the time the grasp was recognized."""
+    monitor_state = station.monitor.GetOutputPort("monitor_state").Eval(
+        station.monitor.GetMyContextFromRoot(context))
+    outcome = "failed" if message else GraspMonitor.outcome(
+        monitor_state).name.lower()
+    grasp_t = GraspMonitor.grasp_time(monitor_state)
+    return outcome, (grasp_t if grasp_t >= 0 else None)
 
 
 def _read_logs(station, context) -> Logs:

@@ -1,0 +1,157 @@
+"""Every cell of the parameter space from one shared throw, by forking the
+simulation where the cells' histories part.
+
+Until the catch state machine first compares the approach sensors with
+h_catch, a catch episode does not depend on (h_catch, h_down) at all: the
+throw, the move to the grasp position and the wait are the same simulation
+for every cell. A cell's history parts from the others at its trigger: the
+first sensor sample in WAIT at which the approach distance is below its
+h_catch (h_down is read there too). So one parent simulation runs the shared
+history with a parameter that never triggers (h_catch = 0), and at each
+sample checks, before the state machine's update at that time runs, which
+rows of h_catch would trigger now; for each such cell it forks the process
+(`os.fork`: the child holds the parent's simulator and context, bit for bit),
+and the child sets the cell's parameters and runs to the outcome. A cell
+whose h_catch never triggers shares the parent's outcome, computed with
+parameters it never read.
+
+The result of each cell is the result that `run_episode` gives for it (the
+tests compare them): this only skips recomputing the shared part.
+"""
+
+import os
+import pickle
+import time
+
+import numpy as np
+
+from regrasp_drake.station.catch_state_machine import Phase
+from regrasp_drake.station.episode import advance_to_outcome, read_outcome
+from regrasp_drake.station.station import build_station, initialize
+
+
+def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
+              on_result=None) -> list[dict]:
+    """Runs one catch episode per (h_catch, h_down) in `parameters`.
+
+    Returns one dict per entry, in order: h_catch, h_down, outcome,
+    sim_time_s, catch_time_s, message, wall_s (the child's wall time, or the
+    shared run's for cells that never triggered), p_WO_final (the object's
+    final position, m). `on_result(i, row)` is
+    called as each cell finishes. At most `workers` children run at once.
+    """
+    t0 = time.perf_counter()
+    parameters = [(float(h), float(d)) for h, d in parameters]
+    station = build_station(scenario, obj, ik=ik, X_WG=X_WG,
+                            catch_parameters=(0.0, 0.0))
+    source = station.diagram.GetSubsystemByName("catch_parameters")
+    ir = station.diagram.GetSubsystemByName("infrared")
+    machine = station.state_machine
+    simulator = initialize(station, scenario)
+    context = simulator.get_mutable_context()
+    ir_context = ir.GetMyContextFromRoot(context)
+    machine_context = machine.GetMyContextFromRoot(context)
+    source_context = source.GetMyMutableContextFromRoot(context)
+
+    rows = [None] * len(parameters)
+    waiting = sorted({h for h, _ in parameters}, reverse=True)
+    children = {}  # pid -> (read end, indices)
+    period = scenario.sensors.period_s
+    levels = scenario.sensors.levels
+    approach_range = scenario.sensors.approach_range_m
+    t_final = scenario.monitor.max_time_s + 1.0
+
+    def finish(pid):
+        fd, indices = children.pop(pid)
+        with os.fdopen(fd, "rb") as f:
+            data = f.read()
+        os.waitpid(pid, 0)
+        if not data:
+            message = "the simulation process died"
+            results = [dict(outcome="failed", sim_time_s=None,
+                            catch_time_s=None, message=message, wall_s=None,
+                            p_WO_final=None) for _ in indices]
+        else:
+            results = pickle.loads(data)
+        for i, result in zip(indices, results):
+            rows[i] = {"h_catch": parameters[i][0],
+                       "h_down": parameters[i][1]} | result
+            if on_result is not None:
+                on_result(i, rows[i])
+
+    def fork(i):
+        """A child process runs cell i from here to its outcome."""
+        while len(children) >= max(1, workers):
+            finish(next(iter(children)))
+        read_fd, write_fd = os.pipe()
+        pid = os.fork()
+        if pid == 0:
+            try:
+                os.close(read_fd)
+                result = _run_child(simulator, station, scenario, source,
+                                    source_context, parameters[i], t_final)
+                with os.fdopen(write_fd, "wb") as f:
+                    f.write(pickle.dumps([result]))
+            finally:
+                os._exit(0)
+        os.close(write_fd)
+        children[pid] = (read_fd, [i])
+
+    message = ""
+    k = 0
+    while waiting:
+        k += 1
+        message = advance_to_outcome(simulator, station, scenario,
+                                     min(k * period, t_final))
+        done = read_outcome(station, context, message)[0] != "running"
+        if message or done or context.get_time() >= t_final:
+            break
+        phase = machine.GetOutputPort("phase").Eval(machine_context)[0]
+        if phase != Phase.WAIT:
+            continue
+        # What the state machine's check at this time will read.
+        distance = (float(np.min(ir.GetOutputPort("ir_levels").Eval(
+            ir_context)[3:])) / levels * approach_range)
+        while waiting and distance < waiting[0]:
+            h_catch = waiting.pop(0)
+            for i, (h, _) in enumerate(parameters):
+                if h == h_catch:
+                    fork(i)
+    # Cells that never triggered share the parent's history to its end.
+    if any(h in waiting for h, _ in parameters):
+        if not message and read_outcome(station, context, "")[0] == "running":
+            message = advance_to_outcome(simulator, station, scenario, t_final)
+        outcome, grasp_t = read_outcome(station, context, message)
+        shared = dict(outcome=outcome, sim_time_s=round(context.get_time(), 4),
+                      catch_time_s=grasp_t, message=message,
+                      wall_s=round(time.perf_counter() - t0, 3),
+                      p_WO_final=_object_position(station, context))
+        for i, (h, d) in enumerate(parameters):
+            if h in waiting:
+                rows[i] = {"h_catch": h, "h_down": d} | shared
+                if on_result is not None:
+                    on_result(i, rows[i])
+    while children:
+        finish(next(iter(children)))
+    return rows
+
+
+def _run_child(simulator, station, scenario, source, source_context,
+               cell_parameters, t_final) -> dict:
+    t0 = time.perf_counter()
+    source.get_mutable_source_value(source_context).SetFromVector(
+        list(cell_parameters))
+    context = simulator.get_context()
+    message = advance_to_outcome(simulator, station, scenario, t_final)
+    outcome, grasp_t = read_outcome(station, context, message)
+    return dict(outcome=outcome, sim_time_s=round(context.get_time(), 4),
+                catch_time_s=grasp_t, message=message,
+                wall_s=round(time.perf_counter() - t0, 3),
+                p_WO_final=_object_position(station, context))
+
+
+def _object_position(station, context) -> list:
+    """The object's final position (m), unrounded: it shows any difference."""
+    plant_context = station.plant.GetMyContextFromRoot(context)
+    return station.plant.EvalBodyPoseInWorld(
+        plant_context, station.object_body).translation().tolist()

@@ -1,0 +1,50 @@
+"""Forked cells give the same episodes as whole runs."""
+
+import unittest
+
+import numpy as np
+import torch
+
+from regrasp_drake.grid import plan_object
+from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station.branching import run_cells
+from regrasp_drake.station.episode import run_episode
+from regrasp_drake.station.scenario import load_scenario
+from regrasp_drake.world.objects import resolve_object
+
+
+class RunCellsTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        torch.set_num_threads(1)
+        cls.scenario = load_scenario()
+        cls.obj = resolve_object(name="table1-row2")
+        cls.ik = ArmIk()
+        cls.plan = plan_object(cls.scenario, cls.obj, cls.ik)
+
+    def test_forked_cells_equal_whole_episodes(self):
+        # Rows that trigger at different times, and a catch and drops.
+        parameters = [(0.40, -0.05), (0.20, -0.09), (0.08, -0.13),
+                      (0.20, 0.0)]
+        finished = []
+        rows = run_cells(self.scenario, self.obj, ik=self.ik,
+                         X_WG=self.plan.X_WG, parameters=parameters,
+                         workers=2, on_result=lambda i, row: finished.append(i))
+        self.assertEqual(sorted(finished), [0, 1, 2, 3])
+        outcomes = set()
+        for (h_catch, h_down), row in zip(parameters, rows):
+            whole = run_episode(self.scenario, self.obj, ik=self.ik,
+                                X_WG=self.plan.X_WG,
+                                catch_parameters=(h_catch, h_down))
+            self.assertEqual((row["h_catch"], row["h_down"]), (h_catch, h_down))
+            self.assertEqual(row["outcome"], whole.outcome)
+            self.assertEqual(row["sim_time_s"], round(whole.sim_time_s, 4))
+            self.assertEqual(row["catch_time_s"], whole.catch_time_s)
+            # Bit for bit: the object ends at exactly the same position.
+            np.testing.assert_array_equal(row["p_WO_final"], whole.p_WO_final)
+            outcomes.add(row["outcome"])
+        self.assertEqual(outcomes, {"caught", "dropped"})
+
+
+if __name__ == "__main__":
+    unittest.main()
