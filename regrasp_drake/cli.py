@@ -7,6 +7,7 @@ import argparse
 import json
 import os
 import sys
+import time
 from pathlib import Path
 
 from regrasp_drake.errors import InputError
@@ -23,6 +24,13 @@ def _add_object_args(p: argparse.ArgumentParser) -> None:
 def _add_scenario_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenario", metavar="F", type=Path,
                    help="a scenario YAML file (default: the shipped defaults)")
+
+
+def _add_library_arg(p: argparse.ArgumentParser) -> None:
+    from regrasp_drake.learning.library import DEFAULT_LIBRARY
+    p.add_argument("--library", metavar="F", type=Path, default=DEFAULT_LIBRARY,
+                   help=f"the regrasp library YAML (default: {DEFAULT_LIBRARY} "
+                        "in the current directory)")
 
 
 def _cmd_objects(args) -> int:
@@ -80,6 +88,108 @@ def _cmd_grid(args) -> int:
     return 0
 
 
+def _scenario_and_object(args):
+    """The scenario and object of a command, and their provenance labels."""
+    from regrasp_drake.station.scenario import load_scenario
+    from regrasp_drake.world.objects import resolve_object
+    scenario = load_scenario(args.scenario)
+    obj = resolve_object(name=args.object, file=args.object_file)
+    source = (str(args.object_file.resolve()) if args.object_file
+              else "catalogue")
+    label = str(args.scenario.resolve()) if args.scenario else "defaults"
+    return scenario, obj, source, label
+
+
+def _write_json(path, data) -> None:
+    if path:
+        path.write_text(json.dumps(data, indent=1) + "\n")
+
+
+def _cmd_throw(args) -> int:
+    from regrasp_drake.learning.learning_phase import observe
+    from regrasp_drake.planning.ik import ArmIk
+    scenario, obj, _, _ = _scenario_and_object(args)
+    observation = observe(scenario, obj, ArmIk())
+    if args.plot:
+        from regrasp_drake.learning.plots import plot_flight
+        plot_flight(observation, scenario, args.plot)
+    summary = observation.as_dict()
+    print(json.dumps(summary, indent=1))
+    _write_json(args.json, summary)
+    return 0
+
+
+def _load_network(args, scenario):
+    """The MLP of --weights (default: the scenario's catch.weights in
+    models/), refused with one line naming the file."""
+    from regrasp_drake.paths import MODELS_DIR
+    from regrasp_drake.station.mlp_system import load_weights
+    path = args.weights or MODELS_DIR / scenario.catch.weights
+    try:
+        model, _ = load_weights(path)
+    except InputError as e:
+        flag = ("--weights" if args.weights
+                else "--weights (default: the scenario's catch.weights)")
+        raise InputError(f"{flag}: {e}") from None
+    return model
+
+
+def _replay(path):
+    """A RunReplay when --html is asked for, else None."""
+    if path is None:
+        return None
+    from regrasp_drake.learning.run_replay import RunReplay
+    return RunReplay()
+
+
+def _cmd_learn(args) -> int:
+    import torch
+
+    from regrasp_drake.learning.learning_phase import learn
+    torch.set_num_threads(1)
+    scenario, obj, source, label = _scenario_and_object(args)
+    model = _load_network(args, scenario)
+    replay = _replay(args.html)
+    result = learn(scenario, obj, model, library_path=args.library,
+                   scenario_label=label, object_source=source,
+                   max_throws=args.max_throws,
+                   meshcat=replay.meshcat if replay else None,
+                   on_episode=(lambda r: replay.add_episode(r.sim_time_s))
+                   if replay else None)
+    if replay is not None:
+        replay.save(args.html)
+    if args.plot:
+        from regrasp_drake.learning.plots import plot_search
+        plot_search(result.attempts, result.start_cell, args.plot,
+                    title=f"{obj.name}: {result.throws} throws, "
+                          f"{'caught' if result.caught else 'not caught'}")
+    summary = result.as_dict() | {
+        "stored_in": str(args.library) if result.learned else None}
+    print(json.dumps(summary, indent=1))
+    _write_json(args.json, summary)
+    return 0
+
+
+def _cmd_apply(args) -> int:
+    from regrasp_drake.learning.learning_phase import apply_learned
+    from regrasp_drake.learning.library import lookup
+    start = time.perf_counter()
+    scenario, obj, _, _ = _scenario_and_object(args)
+    entry = lookup(args.library, obj.name)
+    replay = _replay(args.html)
+    result = apply_learned(scenario, obj, entry,
+                           meshcat=replay.meshcat if replay else None)
+    if replay is not None:
+        replay.add_episode(result.sim_time_s)
+        replay.save(args.html)
+    summary = result.summary() | {
+        "throws": 1, "cell": entry.cell, "library": str(args.library),
+        "total_wall_s": round(time.perf_counter() - start, 3)}
+    print(json.dumps(summary, indent=1))
+    _write_json(args.json, summary)
+    return 0
+
+
 def make_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="regrasp-drake",
@@ -117,6 +227,43 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                    metavar="N", help="worker processes (default: all cores)")
     p.set_defaults(func=_cmd_grid)
+
+    p = sub.add_parser("throw", help="the observation throw and its offline "
+                                     "stage: catch points and the hand's pose")
+    _add_object_args(p)
+    _add_scenario_arg(p)
+    p.add_argument("--json", type=Path, metavar="F", help="write the result")
+    p.add_argument("--plot", type=Path, metavar="F",
+                   help="PNG of the flight, its axis tilt and catch points")
+    p.set_defaults(func=_cmd_throw)
+
+    p = sub.add_parser("learn", help="the learning phase: watch, predict, "
+                                     "catch, search the parameter space")
+    _add_object_args(p)
+    _add_scenario_arg(p)
+    _add_library_arg(p)
+    p.add_argument("--weights", type=Path, metavar="F",
+                   help="the MLP's weights file (default: the scenario's "
+                        "catch.weights in models/)")
+    p.add_argument("--max-throws", type=int, metavar="N",
+                   help="stop after N throws, the watch included (default: "
+                        "until a catch or all 150 cells are tried)")
+    p.add_argument("--html", type=Path, metavar="F",
+                   help="the Meshcat replay of every throw, one HTML file")
+    p.add_argument("--json", type=Path, metavar="F", help="write the result")
+    p.add_argument("--plot", type=Path, metavar="F",
+                   help="PNG of the search (the paper's Fig. 7)")
+    p.set_defaults(func=_cmd_learn)
+
+    p = sub.add_parser("apply", help="the applying phase: one throw, caught "
+                                     "with what `learn` stored")
+    _add_object_args(p)
+    _add_scenario_arg(p)
+    _add_library_arg(p)
+    p.add_argument("--html", type=Path, metavar="F",
+                   help="the Meshcat replay of the throw, one HTML file")
+    p.add_argument("--json", type=Path, metavar="F", help="write the result")
+    p.set_defaults(func=_cmd_apply)
     return parser
 
 

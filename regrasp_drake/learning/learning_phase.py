@@ -1,0 +1,309 @@
+"""The learning phase (paper Fig. 1) and the applying phase (paper §II).
+
+Learning: throw 1 watches the object's flight (no catch attempt); the offline
+stage finds the catch point and plans the hand's pose there
+(`throw_catch.plan_catch`); the MLP predicts (h_catch, h_down) from
+(v_catch, h_cm, r_cm, d_obj, v_conv); throw 2 catches with that prediction;
+when it fails, the wavefront search (`search.wavefront_order`) goes on from
+the prediction's cell, one throw per cell, until a catch or the grid is
+exhausted. Every throw recreates the same initial conditions, so the flight
+repeats exactly and only the catch differs.
+
+Throw 2 uses the parameters of the grid cell nearest the clamped prediction,
+not the prediction itself: the network's output is quantized to the paper's
+tolerances (0.04 m in h_catch, 0.01 m in h_down), which makes throw 2 the
+first cell of one grid search (as the paper's Fig. 8 does: its start point
+is a cell of the parameter space). The raw and clamped predictions are
+reported beside the cell.
+
+Applying: one throw with the stored grasp pose and parameters.
+"""
+
+import dataclasses as dc
+import sys
+import time
+
+import numpy as np
+import torch
+
+from regrasp_drake import __version__
+from regrasp_drake.errors import InputError, field_error
+from regrasp_drake.grid import cell_parameters, nearest_cell
+from regrasp_drake.learning import library as lib
+from regrasp_drake.learning.search import wavefront_order
+from regrasp_drake.planning.catch_plan import (
+    CatchPoint,
+    find_catch_points,
+    palm_poses_for,
+)
+from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station.episode import EpisodeResult, run_episode
+from regrasp_drake.station.mlp_system import FEATURE_NAMES, CatchMlp, ParameterSpace
+from regrasp_drake.station.scenario import Scenario
+from regrasp_drake.throw_catch import CatchPlan, plan_catch, watch
+from regrasp_drake.world.objects import ObjectSpec
+
+
+# ---- the observation throw and its offline stage (`regrasp-drake throw`) --
+@dc.dataclass
+class Observation:
+    watched: EpisodeResult
+    points: list[CatchPoint]  # every catch point, best first
+    reach: list[list[dict]]   # per point, per side: reachable, reason
+    plan: CatchPlan | None    # None when no point is reachable
+    plan_error: str           # why there is no plan ("" when there is one)
+
+    def as_dict(self) -> dict:
+        used = self.plan.catch_point.t_s if self.plan else None
+        return {
+            "object": self.watched.object,
+            "watch": _episode_dict(self.watched),
+            "catch_points": [p.as_dict() | {"used": p.t_s == used, "sides": r}
+                             for p, r in zip(self.points, self.reach)],
+            "plan": None if self.plan is None else _plan_dict(self.plan),
+            "plan_error": self.plan_error,
+        }
+
+
+def observe(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
+            meshcat=None) -> Observation:
+    """The watching throw and the offline stage, with every catch point.
+
+    The catch point used by default is the first one the arm reaches in the
+    order of `find_catch_points` (the same choice as `plan_catch`): the
+    moments of the descent where the object's axis is horizontal within
+    `catch.tilt_tolerance` (the palm is horizontal, and the paper catches
+    "where the object is horizontal, otherwise the probability of catching
+    is reduced"), nearest first to the preferred catch height
+    `catch.catch_height_m` (0.78 m by default: the palm-up arm reaches under
+    the flights there, and every catalogue object falls from at least
+    0.45 m above it, so that every h_catch of the grid, up to 0.40 m, can
+    trigger before the object arrives). A point the arm cannot reach on
+    either side is skipped; `reach` says why, per side."""
+    watched = watch(scenario, obj, ik, meshcat=meshcat)
+    try:
+        plan, error = plan_catch(scenario, obj, ik, watched), ""
+    except InputError as e:
+        plan, error = None, str(e)
+    c = scenario.catch
+    points = find_catch_points(watched.logs.t, watched.logs.object_state,
+                               height_m=c.catch_height_m,
+                               tilt_tolerance=c.tilt_tolerance,
+                               band_m=c.height_band_m)
+    if plan is not None and all(p.t_s != plan.catch_point.t_s for p in points):
+        points.append(plan.catch_point)  # a point plan_catch chose otherwise
+    reach = []
+    for point in points:
+        sides = []
+        for side, X_WG in zip(("paper", "mirrored"),
+                              palm_poses_for(point, obj.grasp_radius)):
+            result = ik.solve(X_WG, c.ik_seed_q_rad)
+            sides.append({"side": side, "reachable": result.success,
+                          "reason": result.reason()})
+        reach.append(sides)
+    return Observation(watched, points, reach, plan, error)
+
+
+# ---- the network's prediction -------------------------------------------
+def network_features(obj: ObjectSpec, catch_point: CatchPoint) -> list[float]:
+    """The MLP's inputs in its order (mlp_system.FEATURE_NAMES): v_catch (m/s)
+    at the catch point, then the object's h_cm, r_cm (m), d_obj (kg/m³) and
+    v_conv."""
+    values = {"v_catch": catch_point.v_catch} | obj.features()
+    return [float(values[name]) for name in FEATURE_NAMES]
+
+
+def predict(model: CatchMlp, features) -> tuple[list[float], tuple]:
+    """The network's raw output and the output clamped to the parameter space,
+    (h_catch, h_down) in m."""
+    with torch.no_grad():
+        raw = model(torch.as_tensor(np.asarray(features, np.float64))).tolist()
+    return raw, ParameterSpace().clamp(*raw)
+
+
+# ---- the learning phase -------------------------------------------------
+@dc.dataclass
+class Attempt:
+    throw: int          # the throw's number in the run (the watch is 1)
+    cell: tuple         # (i_catch, i_down)
+    h_catch: float      # [m]
+    h_down: float       # [m]
+    outcome: str        # caught | dropped | timeout | landed | failed
+    sim_time_s: float   # simulated time of the throw, [s]
+    wall_s: float       # wall time of the throw, [s]
+    message: str        # a failed episode's reason
+
+    def as_dict(self) -> dict:
+        return {"throw": self.throw, "cell": list(self.cell),
+                "h_catch": self.h_catch, "h_down": self.h_down,
+                "outcome": self.outcome,
+                "sim_time_s": round(self.sim_time_s, 4),
+                "wall_s": round(self.wall_s, 3), "message": self.message}
+
+
+@dc.dataclass
+class LearningResult:
+    object: str
+    caught: bool
+    stopped: str        # caught | exhausted | max_throws
+    throws: int         # every throw, the watching throw included
+    sim_time_s: float   # simulated time of every throw, [s]
+    wall_s: float       # wall time of the whole phase, [s]
+    watched: EpisodeResult
+    plan: CatchPlan
+    features: list      # the network's inputs (FEATURE_NAMES order)
+    raw_prediction: list    # the network's output (h_catch, h_down), [m]
+    prediction: tuple       # clamped to the parameter space, [m]
+    start_cell: tuple
+    attempts: list[Attempt]
+    learned: lib.LearnedEntry | None
+
+    def as_dict(self) -> dict:
+        return {
+            "object": self.object, "caught": self.caught,
+            "stopped": self.stopped, "throws": self.throws,
+            "sim_time_s": round(self.sim_time_s, 4),
+            "wall_s": round(self.wall_s, 3),
+            "watch": _episode_dict(self.watched),
+            "plan": _plan_dict(self.plan),
+            "features": dict(zip(FEATURE_NAMES, self.features)),
+            "prediction": {"raw": [round(x, 5) for x in self.raw_prediction],
+                           "clamped": [round(x, 5) for x in self.prediction],
+                           "start_cell": list(self.start_cell),
+                           "start_parameters": list(
+                               cell_parameters(self.start_cell))},
+            "attempts": [a.as_dict() for a in self.attempts],
+            "learned": None if self.learned is None else self.learned.as_dict(),
+        }
+
+
+def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
+          ik: ArmIk | None = None, library_path=None,
+          scenario_label: str = "defaults",
+          object_source: str = "catalogue", max_throws: int | None = None,
+          meshcat=None, on_episode=None, progress=sys.stderr) -> LearningResult:
+    """The learning phase on one object (see the module's docstring).
+
+    library_path: where the learned entry is stored when a throw catches
+    (None: not stored). max_throws: stop after this many throws, the watch
+    included (None: until a catch or the 150 cells are exhausted).
+    meshcat: recorded by every throw; on_episode(result) is called after each
+    (e.g. RunReplay.add_episode). progress: a stream that gets one line per
+    throw (None: quiet)."""
+    if max_throws is not None and not (
+            isinstance(max_throws, int) and max_throws >= 2):
+        raise field_error("max_throws", max_throws,
+                          "an integer >= 2 (the watch and one catch attempt)")
+    if library_path is not None:
+        lib.load_library(library_path)  # a malformed file: refused now
+    t0 = time.perf_counter()
+    ik = ik or ArmIk()
+
+    def report(line):
+        if progress is not None:
+            print(f"{obj.name}: {line}", file=progress, flush=True)
+
+    # Throw 1 watches; the offline stage plans the catch and the network
+    # predicts its parameters.
+    watched = watch(scenario, obj, ik, meshcat=meshcat)
+    if on_episode is not None:
+        on_episode(watched)
+    report(f"throw 1 (watch): {watched.outcome}, "
+           f"{watched.sim_time_s:.2f} s simulated, {watched.wall_s:.1f} s wall")
+    plan = plan_catch(scenario, obj, ik, watched)
+    features = network_features(obj, plan.catch_point)
+    raw, prediction = predict(model, features)
+    start = nearest_cell(*prediction)
+    report(f"catch point at t = {plan.catch_point.t_s:.3f} s, v_catch "
+           f"{plan.catch_point.v_catch:.3f} m/s; network: h_catch "
+           f"{raw[0]:.3f} m, h_down {raw[1]:.3f} m -> start cell {start}")
+
+    # Throw 2 catches at the predicted cell; the wavefront search goes on.
+    attempts, throws, stopped = [], 1, "exhausted"
+    for cell in wavefront_order(start):
+        if max_throws is not None and throws >= max_throws:
+            stopped = "max_throws"
+            break
+        h_catch, h_down = cell_parameters(cell)
+        result = run_episode(scenario, obj, ik=ik, X_WG=plan.X_WG,
+                             catch_parameters=(h_catch, h_down),
+                             meshcat=meshcat)
+        throws += 1
+        if on_episode is not None:
+            on_episode(result)
+        attempts.append(Attempt(throw=throws, cell=cell, h_catch=h_catch,
+                                h_down=h_down, outcome=result.outcome,
+                                sim_time_s=result.sim_time_s,
+                                wall_s=result.wall_s, message=result.message))
+        report(f"throw {throws}: cell {cell} (h_catch {h_catch:.2f} m, h_down "
+               f"{h_down:.2f} m): {result.outcome}, {result.sim_time_s:.2f} s "
+               f"simulated, {result.wall_s:.1f} s wall")
+        if result.caught:
+            stopped = "caught"
+            break
+
+    learned = None
+    if stopped == "caught":
+        last = attempts[-1]
+        learned = lib.LearnedEntry(
+            object_source=object_source,
+            object_features=dict(obj.features()),
+            scenario=scenario_label,
+            scenario_digest=lib.scenario_digest(scenario),
+            code_version=__version__,
+            catch_point=plan.catch_point.as_dict(),
+            p_WG=[float(x) for x in plan.X_WG.translation()],
+            R_WG=plan.X_WG.rotation().matrix().tolist(),
+            q_grasp=[float(x) for x in plan.q_grasp], side=plan.side,
+            h_catch=last.h_catch, h_down=last.h_down, cell=list(last.cell),
+            throws=throws)
+        if library_path is not None:
+            lib.store(library_path, obj.name, learned)
+    return LearningResult(
+        object=obj.name, caught=learned is not None, stopped=stopped,
+        throws=throws,
+        sim_time_s=watched.sim_time_s + sum(a.sim_time_s for a in attempts),
+        wall_s=time.perf_counter() - t0, watched=watched, plan=plan,
+        features=features, raw_prediction=raw, prediction=prediction,
+        start_cell=start, attempts=attempts, learned=learned)
+
+
+# ---- the applying phase -------------------------------------------------
+def check_entry(scenario: Scenario, obj: ObjectSpec,
+                entry: lib.LearnedEntry) -> None:
+    """Refuses an entry learned under another scenario or for an object with
+    other features: its parameters hold for the throw they were learned
+    with."""
+    digest = lib.scenario_digest(scenario)
+    if entry.scenario_digest != digest:
+        raise InputError(
+            f"object {obj.name}: learned with scenario {entry.scenario} "
+            f"(digest {entry.scenario_digest}), the current scenario differs "
+            f"(digest {digest}); run `regrasp-drake learn` with this scenario")
+    if entry.object_features != obj.features():
+        raise InputError(
+            f"object {obj.name}: learned with features "
+            f"{entry.object_features}, the object now has {obj.features()}; "
+            f"run `regrasp-drake learn` on it again")
+
+
+def apply_learned(scenario: Scenario, obj: ObjectSpec,
+                  entry: lib.LearnedEntry, *, ik: ArmIk | None = None,
+                  meshcat=None) -> EpisodeResult:
+    """The applying phase: one throw, caught with the learned grasp pose and
+    (h_catch, h_down)."""
+    check_entry(scenario, obj, entry)
+    return run_episode(scenario, obj, ik=ik or ArmIk(), X_WG=entry.X_WG,
+                       catch_parameters=(entry.h_catch, entry.h_down),
+                       meshcat=meshcat)
+
+
+def _episode_dict(result: EpisodeResult) -> dict:
+    return {"outcome": result.outcome,
+            "sim_time_s": round(result.sim_time_s, 4),
+            "wall_s": round(result.wall_s, 3), "message": result.message}
+
+
+def _plan_dict(plan: CatchPlan) -> dict:
+    return plan.as_dict() | {
+        "R_WG": plan.X_WG.rotation().matrix().round(6).tolist()}

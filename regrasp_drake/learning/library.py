@@ -1,0 +1,224 @@
+"""The regrasp library: what the learning phase learned, per object, in YAML.
+
+The applying phase (paper §II) reads it to throw and catch an object in one
+throw "with the exact same regrasp parameters attained in learning phase".
+Those parameters hold only for the throw they were learned with, so an entry
+keeps its provenance: the scenario (file and a digest of its values) and the
+object's features; `apply` refuses an entry whose scenario or object differs.
+
+The file (default `regrasp_library.yaml` in the current directory):
+
+    format: regrasp_drake.library
+    version: 1
+    objects:
+      table1-row2:
+        object_source: catalogue     # or the object file it came from
+        object_features: {h_cm: …, r_cm: …, d_obj: …, v_conv: …}
+        scenario: defaults           # or the scenario file
+        scenario_digest: 3f2a…       # sha256 of the scenario's values
+        code_version: 0.1.0
+        catch_point: {t_s: …, p_WO: [x, y, z], axis_W: […], v_catch: …, tilt: …}
+        p_WG: [x, y, z]              # the palm's grasp pose, [m]
+        R_WG: [[…], […], […]]        # its rotation matrix, rows
+        q_grasp: [6 joint angles]    # the arm there, [rad]
+        side: paper                  # or mirrored
+        h_catch: 0.2                 # [m]
+        h_down: -0.05                # [m]
+        cell: [4, 9]                 # (i_catch, i_down) of the grid
+        throws: 2                    # the learning phase's throws, watch included
+"""
+
+import dataclasses as dc
+import hashlib
+import json
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import yaml
+from pydrake.math import RigidTransform, RotationMatrix
+
+from regrasp_drake.errors import InputError, field_error
+from regrasp_drake.grid import H_CATCH_VALUES, H_DOWN_VALUES
+from regrasp_drake.station.scenario import H_CATCH_RANGE, H_DOWN_RANGE, Scenario
+
+DEFAULT_LIBRARY = Path("regrasp_library.yaml")
+_FORMAT = "regrasp_drake.library"
+_VERSION = 1
+_FEATURES = ("h_cm", "r_cm", "d_obj", "v_conv")
+_CATCH_POINT = ("t_s", "p_WO", "axis_W", "v_catch", "tilt")
+
+
+@dc.dataclass
+class LearnedEntry:
+    """One object's learned catch (units as in the module's docstring)."""
+    object_source: str
+    object_features: dict
+    scenario: str
+    scenario_digest: str
+    code_version: str
+    catch_point: dict
+    p_WG: list
+    R_WG: list
+    q_grasp: list
+    side: str
+    h_catch: float
+    h_down: float
+    cell: list
+    throws: int
+
+    @property
+    def X_WG(self) -> RigidTransform:
+        return RigidTransform(RotationMatrix(np.array(self.R_WG)),
+                              np.array(self.p_WG))
+
+    def as_dict(self) -> dict:
+        return dc.asdict(self)
+
+
+def scenario_digest(scenario: Scenario) -> str:
+    """A short sha256 of every value of the scenario: equal digests, same throw
+    and same catch machinery."""
+    text = json.dumps(dc.asdict(scenario), sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def load_library(path) -> dict[str, LearnedEntry]:
+    """The entries of the library at path, by object name; {} when the file
+    does not exist. Raises InputError naming the file and the field for a
+    malformed file."""
+    path = Path(path)
+    if not path.exists():
+        return {}
+    try:
+        data = yaml.safe_load(path.read_text())
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as e:
+        first = " ".join(str(e).split())[:200]
+        raise InputError(f"{path}: not a readable YAML file ({first})") from None
+    if not isinstance(data, dict) or data.get("format") != _FORMAT:
+        raise field_error(f"{path}: format",
+                          data.get("format") if isinstance(data, dict) else data,
+                          repr(_FORMAT))
+    if data.get("version") != _VERSION:
+        raise field_error(f"{path}: version", data.get("version"), str(_VERSION))
+    unknown = sorted(set(data) - {"format", "version", "objects"})
+    if unknown:
+        raise field_error(f"{path}: keys", unknown,
+                          "only format, version and objects")
+    objects = data.get("objects") or {}
+    if not isinstance(objects, dict):
+        raise field_error(f"{path}: objects", objects,
+                          "a mapping from object names to entries")
+    return {str(name): _entry(f"{path}: objects.{name}", raw)
+            for name, raw in objects.items()}
+
+
+def save_library(path, entries: dict[str, LearnedEntry]) -> Path:
+    """Writes the entries to path (atomically: a reader never sees half a
+    file). Returns path."""
+    path = Path(path)
+    data = {"format": _FORMAT, "version": _VERSION,
+            "objects": {name: entries[name].as_dict() for name in sorted(entries)}}
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(yaml.safe_dump(data, sort_keys=False,
+                                  default_flow_style=None, width=100))
+    os.replace(tmp, path)
+    return path
+
+
+def store(path, name: str, entry: LearnedEntry) -> Path:
+    """Adds or replaces the entry of object `name` in the library at path."""
+    entries = load_library(path)
+    entries[name] = entry
+    return save_library(path, entries)
+
+
+def lookup(path, name: str) -> LearnedEntry:
+    """The entry of object `name`; InputError saying to run `learn` first when
+    there is none."""
+    entries = load_library(path)
+    if name not in entries:
+        where = (f"{path} has no entry for it" if Path(path).exists()
+                 else f"{path} does not exist")
+        raise InputError(
+            f"object {name}: nothing learned yet ({where}); run "
+            f"`regrasp-drake learn` on it first (with the same --library)")
+    return entries[name]
+
+
+# ---- validation ---------------------------------------------------------
+def _entry(where: str, raw) -> LearnedEntry:
+    if not isinstance(raw, dict):
+        raise field_error(where, raw, "a mapping of the entry's fields")
+    names = [f.name for f in dc.fields(LearnedEntry)]
+    missing = [n for n in names if n not in raw]
+    if missing:
+        raise InputError(f"{where}.{missing[0]}: missing")
+    unknown = sorted(set(raw) - set(names))
+    if unknown:
+        raise field_error(f"{where}: keys", unknown, f"only {names}")
+    for n in ("object_source", "scenario", "scenario_digest", "code_version"):
+        _string(f"{where}.{n}", raw[n])
+    features = _mapping(f"{where}.object_features", raw["object_features"],
+                        _FEATURES)
+    for n in _FEATURES:
+        _number(f"{where}.object_features.{n}", features[n])
+    point = _mapping(f"{where}.catch_point", raw["catch_point"], _CATCH_POINT)
+    for n in ("t_s", "v_catch", "tilt"):
+        _number(f"{where}.catch_point.{n}", point[n])
+    for n in ("p_WO", "axis_W"):
+        _vector(f"{where}.catch_point.{n}", point[n], 3)
+    _vector(f"{where}.p_WG", raw["p_WG"], 3)
+    R = raw["R_WG"]
+    if not (isinstance(R, list) and len(R) == 3):
+        raise field_error(f"{where}.R_WG", R, "3 rows of 3 numbers")
+    for i, row in enumerate(R):
+        _vector(f"{where}.R_WG[{i}]", row, 3)
+    R = np.array(R, float)
+    if (np.abs(R @ R.T - np.eye(3)).max() > 1e-6
+            or abs(np.linalg.det(R) - 1.0) > 1e-6):
+        raise field_error(f"{where}.R_WG", R.round(6).tolist(),
+                          "a rotation matrix (orthonormal, det +1)")
+    _vector(f"{where}.q_grasp", raw["q_grasp"], 6)
+    if raw["side"] not in ("paper", "mirrored"):
+        raise field_error(f"{where}.side", raw["side"], "paper or mirrored")
+    _number(f"{where}.h_catch", raw["h_catch"], *H_CATCH_RANGE, " m")
+    _number(f"{where}.h_down", raw["h_down"], *H_DOWN_RANGE, " m")
+    cell = raw["cell"]
+    if not (isinstance(cell, list) and len(cell) == 2
+            and all(type(k) is int for k in cell)
+            and 0 <= cell[0] < len(H_CATCH_VALUES)
+            and 0 <= cell[1] < len(H_DOWN_VALUES)):
+        raise field_error(f"{where}.cell", cell,
+                          f"[i_catch, i_down], integers below "
+                          f"{len(H_CATCH_VALUES)} and {len(H_DOWN_VALUES)}")
+    if not (type(raw["throws"]) is int and raw["throws"] >= 2):
+        raise field_error(f"{where}.throws", raw["throws"], "an integer >= 2")
+    return LearnedEntry(**raw)
+
+
+def _string(field, value):
+    if not isinstance(value, str) or not value:
+        raise field_error(field, value, "a non-empty string")
+
+
+def _number(field, value, lo=-math.inf, hi=math.inf, unit=""):
+    if not (isinstance(value, (int, float)) and not isinstance(value, bool)
+            and math.isfinite(value) and lo <= value <= hi):
+        expected = ("a finite number" if math.isinf(lo) and math.isinf(hi)
+                    else f"a number in [{lo}, {hi}]{unit}")
+        raise field_error(field, value, expected)
+
+
+def _vector(field, value, n):
+    if not (isinstance(value, list) and len(value) == n):
+        raise field_error(field, value, f"a list of {n} numbers")
+    for i, x in enumerate(value):
+        _number(f"{field}[{i}]", x)
+
+
+def _mapping(field, value, keys) -> dict:
+    if not isinstance(value, dict) or set(value) != set(keys):
+        raise field_error(field, value, f"a mapping with exactly {list(keys)}")
+    return value

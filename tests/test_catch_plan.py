@@ -1,0 +1,276 @@
+"""The offline stage: catch points on analytic flights, the hand's pose at a
+catch point (paper eqs. 1-7 in Drake's z-up world), and the arm's inverse
+kinematics there."""
+
+import json
+import subprocess
+import sys
+import tempfile
+import types
+import unittest
+from pathlib import Path
+
+import numpy as np
+from pydrake.multibody.plant import MultibodyPlant
+
+from regrasp_drake.errors import InputError
+from regrasp_drake.planning.catch_plan import (
+    CatchPoint,
+    find_catch_points,
+    palm_poses_for,
+)
+from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station.scenario import load_scenario
+from regrasp_drake.throw_catch import plan_catch
+from regrasp_drake.world import robot
+from regrasp_drake.world.objects import load_catalogue
+
+G = 9.81
+DT = 0.001  # sample period of the analytic flights, [s]
+
+
+def tumbling_flight(angle, p0=(0.85, -0.1, 0.8), v0=(0.0, 0.0, 3.0),
+                    duration_s=0.9):
+    """An analytic flight: a parabola under gravity and the object turning
+    about the world x axis by angle(t) rad, so that its axis y_O is
+    (0, cos angle, sin angle). Returns (t, 13-row object states)."""
+    t = np.arange(0.0, duration_s, DT)
+    p = np.array(p0)[:, None] + np.outer(v0, t)
+    p[2] -= 0.5 * G * t ** 2
+    v = np.repeat(np.array(v0, float)[:, None], len(t), axis=1)
+    v[2] -= G * t
+    phi = angle(t)
+    quaternion = np.array([np.cos(phi / 2), np.sin(phi / 2), 0 * t, 0 * t])
+    w = np.zeros((3, len(t)))
+    w[0] = np.gradient(phi, t)
+    return t, np.vstack([quaternion, p, w, v])
+
+
+def crossing_time(height, z0=0.8, vz0=3.0):
+    """When the parabola of `tumbling_flight` falls through height, [s]."""
+    return (vz0 + np.sqrt(vz0 ** 2 + 2 * G * (z0 - height))) / G
+
+
+class TestCatchPoints(unittest.TestCase):
+    def test_horizontal_at_the_catch_height(self):
+        """The axis turns horizontal exactly where the object falls through
+        the catch height: one catch point there, with v_catch = vz0 - g t."""
+        t_h = crossing_time(0.78)
+        t, x = tumbling_flight(lambda t: 8.0 * (t - t_h) + np.pi)
+        points = find_catch_points(t, x, height_m=0.78, tilt_tolerance=0.1,
+                                   band_m=0.3)
+        self.assertEqual(len(points), 1)
+        c = points[0]
+        self.assertAlmostEqual(c.t_s, t_h, delta=DT)
+        self.assertAlmostEqual(c.p_WO[2], 0.78, delta=3.0 * DT * 3.1)
+        self.assertAlmostEqual(c.v_catch, 3.0 - G * t_h, delta=G * DT)
+        self.assertLess(c.v_catch, 0.0)
+        np.testing.assert_allclose(np.abs(c.y_W), [0, 1, 0], atol=0.01)
+        self.assertLess(c.tilt, 8.0 * DT)
+
+    def test_passages_nearest_height_first(self):
+        """The axis turns horizontal several times: every passage of the
+        descent within the band is a catch point, nearest the catch height
+        first; the passages of the ascent and outside the band are not."""
+        t_near, t_far = crossing_time(0.80), crossing_time(1.0)
+        rate = np.pi / (t_near - t_far)  # half a turn between the two
+        t, x = tumbling_flight(lambda t: rate * (t - t_far))
+        points = find_catch_points(t, x, height_m=0.78, tilt_tolerance=0.1,
+                                   band_m=0.3)
+        # The known answer: angle = kπ at t_far + kπ/rate.
+        apex = 3.0 / G
+        passages = [t_far + k * np.pi / rate for k in range(-20, 20)]
+        height = [0.8 + 3.0 * tk - 0.5 * G * tk ** 2 for tk in passages]
+        expected = sorted(
+            (abs(z - 0.78), tk) for tk, z in zip(passages, height)
+            if apex < tk < t[-1] and abs(z - 0.78) <= 0.3)
+        self.assertGreaterEqual(len(expected), 3)
+        self.assertTrue(any(0 < tk < apex for tk in passages),
+                        "the flight also turns horizontal rising")
+        self.assertEqual(len(points), len(expected))
+        # Each point is the sample of its passage (tilt below the tolerance,
+        # within asin(0.1)/rate of the horizontal moment) nearest the height.
+        window = np.arcsin(0.1) / rate + DT
+        for point, (_, tk) in zip(points, expected):
+            self.assertAlmostEqual(point.t_s, tk, delta=window)
+            self.assertLess(point.tilt, 0.1)
+            self.assertAlmostEqual(point.v_catch, 3.0 - G * point.t_s,
+                                   delta=1e-9)
+
+    def test_none_when_the_axis_never_turns_horizontal(self):
+        t, x = tumbling_flight(lambda t: 0.5 + 0.7 * t)  # 0.5 … 1.13 rad
+        self.assertEqual(find_catch_points(t, x, height_m=0.78,
+                                           tilt_tolerance=0.15), [])
+
+    def test_none_when_horizontal_outside_the_band(self):
+        t_low = crossing_time(0.3)
+        t, x = tumbling_flight(lambda t: 4.0 * (t - t_low) + np.pi,
+                               duration_s=1.1)
+        self.assertEqual(find_catch_points(t, x, height_m=0.78,
+                                           tilt_tolerance=0.1, band_m=0.2), [])
+
+
+class TestPalmPose(unittest.TestCase):
+    """Paper eqs. (1)-(7): palm up, the finger-closing direction (the palm's
+    +x, the paper's z_k) perpendicular to the object's axis, on the side the
+    θ = 0.3 rad construction picks."""
+
+    def setUp(self):
+        rng = np.random.default_rng(7)
+        self.points = []
+        for _ in range(200):
+            y = rng.normal(size=3)
+            y[2] *= 0.1  # catch points lie nearly horizontal
+            p = rng.uniform([-1.0, -1.0, 0.5], [1.0, 1.0, 1.0])
+            self.points.append(CatchPoint(t_s=1.0, p_WO=p,
+                                          y_W=y / np.linalg.norm(y),
+                                          v_catch=-3.0, tilt=0.0))
+
+    def test_palm_up_and_fingers_across_the_axis(self):
+        for c in self.points:
+            for X_WG in palm_poses_for(c, 0.03):
+                R = X_WG.rotation().matrix()
+                np.testing.assert_allclose(R[:, 2], [0, 0, 1], atol=1e-12)
+                self.assertLess(abs(R[:, 0] @ c.y_W), 1e-9)
+                # Centred under the object, the grasp piece resting on it.
+                np.testing.assert_allclose(
+                    X_WG.translation(), c.p_WO - [0, 0, 0.03 + 0.002],
+                    atol=1e-12)
+
+    def test_side_from_the_theta_construction(self):
+        """The fingertips point away from r_R (the catch point's horizontal
+        projection turned by θ about the vertical, minus itself), across the
+        axis: z_k = y' × (y' × r_R) / |…|; the second pose is the other
+        side."""
+        theta = 0.3
+        for c in self.points:
+            r_p = np.array([c.p_WO[0], c.p_WO[1], 0.0])
+            r_R = np.array([[np.cos(theta), -np.sin(theta), 0],
+                            [np.sin(theta), np.cos(theta), 0],
+                            [0, 0, 1]]) @ r_p - r_p
+            y = c.y_W * [1, 1, 0] / np.linalg.norm(c.y_W[:2])
+            across = r_R - (r_R @ y) * y
+            paper, mirrored = palm_poses_for(c, 0.03, theta_rad=theta)
+            np.testing.assert_allclose(paper.rotation().matrix()[:, 0],
+                                       -across / np.linalg.norm(across),
+                                       atol=1e-9)
+            np.testing.assert_allclose(mirrored.rotation().matrix()[:, 0],
+                                       across / np.linalg.norm(across),
+                                       atol=1e-9)
+
+    def test_side_independent_of_the_axis_sign(self):
+        """y_O and -y_O are the same symmetry axis: the same hand pose."""
+        for c in self.points:
+            flipped = CatchPoint(c.t_s, c.p_WO, -c.y_W, c.v_catch, c.tilt)
+            for a, b in zip(palm_poses_for(c, 0.03),
+                            palm_poses_for(flipped, 0.03)):
+                self.assertTrue(a.IsExactlyEqualTo(b))
+
+
+class TestInverseKinematics(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.scenario = load_scenario()
+        cls.ik = ArmIk()
+        # An independent forward kinematics: the whole robot (arm and hand)
+        # as the station loads it, the palm frame read directly.
+        cls.plant = MultibodyPlant(0.0)
+        cls.instances = robot.add_puma_and_hand(cls.plant)
+        cls.plant.Finalize()
+        cls.context = cls.plant.CreateDefaultContext()
+
+    def _palm_pose(self, q):
+        self.plant.SetPositions(self.context, self.instances.arm, q)
+        return self.plant.GetFrameByName("palm_surface").CalcPoseInWorld(
+            self.context)
+
+    def test_planned_poses_reached_within_1_mm_and_limits(self):
+        """Random catch points in the catch region (seeded): every solution
+        the IK accepts puts the palm within 1 mm and 1 mrad of the planned
+        pose, by the full robot's kinematics, inside the joint limits; and
+        most points have a reachable side (35 of 40 measured)."""
+        rng = np.random.default_rng(1)
+        lower = self.plant.GetPositionLowerLimits()[:6]
+        upper = self.plant.GetPositionUpperLimits()[:6]
+        arm_joints = [self.plant.GetJointByName(j).position_start()
+                      for j in robot.ARM_JOINTS]
+        self.assertEqual(arm_joints, list(range(6)))
+        reachable = 0
+        for _ in range(40):
+            p = rng.uniform([0.75, -0.25, 0.65], [0.95, 0.15, 0.9])
+            a = rng.uniform(-np.pi, np.pi)
+            y = np.array([np.cos(a), np.sin(a), rng.uniform(-0.15, 0.15)])
+            c = CatchPoint(1.0, p, y / np.linalg.norm(y), -3.0, 0.0)
+            solved = False
+            for X_WG in palm_poses_for(c, 0.025):
+                result = self.ik.solve(X_WG, self.scenario.catch.ik_seed_q_rad)
+                if not result.success:
+                    self.assertTrue(result.reason())
+                    continue
+                solved = True
+                X = self._palm_pose(result.q)
+                self.assertLess(np.linalg.norm(
+                    X.translation() - X_WG.translation()), 1e-3)
+                R_error = X.rotation().inverse() @ X_WG.rotation()
+                self.assertLess(abs(R_error.ToAngleAxis().angle()), 1e-3)
+                self.assertTrue(np.all(result.q >= lower - 1e-12))
+                self.assertTrue(np.all(result.q <= upper + 1e-12))
+            reachable += solved
+        self.assertGreaterEqual(reachable, 32)
+
+    def test_unreachable_point_reported_not_crashed(self):
+        far = CatchPoint(1.0, np.array([3.0, 0.0, 0.8]),
+                         np.array([1.0, 0.0, 0.0]), -3.0, 0.0)
+        for X_WG in palm_poses_for(far, 0.025):
+            result = self.ik.solve(X_WG, self.scenario.catch.ik_seed_q_rad)
+            self.assertFalse(result.success)
+            self.assertIn("position error", result.reason())
+
+    def test_plan_skips_unreachable_points_with_reasons(self):
+        """A watched flight whose only catch point is out of reach: the plan
+        is refused with the point and each side's reason."""
+        t_h = crossing_time(0.78)
+        t, x = tumbling_flight(lambda t: 8.0 * (t - t_h) + np.pi,
+                               p0=(3.0, 0.0, 0.8))
+        watched = types.SimpleNamespace(
+            logs=types.SimpleNamespace(t=t, object_state=x))
+        obj = load_catalogue()["table1-row2"]
+        with self.assertRaises(InputError) as e:
+            plan_catch(self.scenario, obj, self.ik, watched)
+        message = str(e.exception)
+        self.assertIn("no reachable catch point", message)
+        self.assertIn("paper side", message)
+        self.assertIn("mirrored side", message)
+        self.assertEqual(len(message.splitlines()), 1)
+
+
+class TestThrowCommand(unittest.TestCase):
+    def test_throw_reports_catch_points_and_plan(self):
+        """`regrasp-drake throw`: one watching throw, its catch points with
+        v_catch and reachability, the one used, the planned hand pose."""
+        with tempfile.TemporaryDirectory() as d:
+            out, png = Path(d) / "throw.json", Path(d) / "throw.png"
+            result = subprocess.run(
+                [sys.executable, "-m", "regrasp_drake.cli", "throw",
+                 "--object", "table1-row2", "--json", str(out), "--plot",
+                 str(png)], capture_output=True, text=True, timeout=300)
+            self.assertEqual(result.returncode, 0, result.stderr)
+            report = json.loads(out.read_text())
+            self.assertGreater(png.stat().st_size, 10_000)
+        self.assertEqual(report["watch"]["outcome"], "landed")
+        points = report["catch_points"]
+        self.assertGreaterEqual(len(points), 1)
+        self.assertEqual(sum(p["used"] for p in points), 1)
+        used = next(p for p in points if p["used"])
+        self.assertLess(used["v_catch"], 0.0)  # falling
+        self.assertLess(used["tilt"], load_scenario().catch.tilt_tolerance)
+        self.assertTrue(any(s["reachable"] for s in used["sides"]))
+        plan = report["plan"]
+        self.assertEqual(plan["catch_point"]["t_s"], used["t_s"])
+        self.assertEqual(len(plan["q_grasp"]), 6)
+        np.testing.assert_allclose(np.array(plan["R_WG"])[:, 2], [0, 0, 1],
+                                   atol=1e-6)  # palm up
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -1,0 +1,257 @@
+"""The learning phase end to end (watch, predict, catch, search, store), the
+applying phase, their commands, and the replay of every throw of a run.
+
+The trained network comes with a later issue; these tests use tiny weights
+files whose network outputs a chosen (h_catch, h_down) whatever the features
+(output layer zero, output mean the target), so that the start cell is known:
+(0.20, -0.05) m catches table1-row2 at once; h_catch 0.04 m never does (its
+success map, `regrasp-drake grid`). Six episodes in all.
+"""
+
+import json
+import subprocess
+import sys
+import tempfile
+import unittest
+from pathlib import Path
+
+import numpy as np
+import torch
+from pydrake.geometry import Box, Rgba
+from pydrake.math import RigidTransform
+
+from regrasp_drake.grid import nearest_cell
+from regrasp_drake.learning import run_replay
+from regrasp_drake.learning.learning_phase import learn, network_features, predict
+from regrasp_drake.learning.library import load_library
+from regrasp_drake.learning.search import wavefront_order
+from regrasp_drake.planning.catch_plan import CatchPoint
+from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station.mlp_system import (
+    FEATURE_NAMES,
+    CatchMlp,
+    load_weights,
+    save_weights,
+)
+from regrasp_drake.station.scenario import load_scenario
+from regrasp_drake.world.objects import load_catalogue
+
+OBJECT = "table1-row2"
+
+
+def constant_weights(path, h_catch, h_down) -> Path:
+    """A weights file whose network outputs (h_catch, h_down) (m)."""
+    torch.manual_seed(0)
+    model = CatchMlp()
+    with torch.no_grad():
+        model.output.weight.zero_()
+        model.output.bias.zero_()
+        model.output_mean.copy_(torch.tensor([h_catch, h_down]))
+    save_weights(path, model, {"purpose": "tests: a constant prediction"})
+    return Path(path)
+
+
+def _cli(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "regrasp_drake.cli", *args],
+                          capture_output=True, text=True, timeout=600, cwd=cwd)
+
+
+class TestPrediction(unittest.TestCase):
+    def test_features_in_the_networks_order(self):
+        obj = load_catalogue()[OBJECT]
+        point = CatchPoint(1.3, np.zeros(3), np.array([1.0, 0, 0]), -3.5, 0.0)
+        features = network_features(obj, point)
+        expected = {"v_catch": -3.5} | obj.features()
+        self.assertEqual(features, [expected[n] for n in FEATURE_NAMES])
+        self.assertEqual(FEATURE_NAMES[0], "v_catch")
+
+    def test_prediction_clamped_into_the_parameter_space(self):
+        with tempfile.TemporaryDirectory() as d:
+            model, _ = load_weights(constant_weights(Path(d) / "w.pt",
+                                                     0.55, -0.3))
+        raw, clamped = predict(model, [-3.5, 0.0, 0.0, 200.0, 0])
+        np.testing.assert_allclose(raw, [0.55, -0.3])
+        self.assertEqual(clamped, (0.40, -0.14))
+        self.assertEqual(nearest_cell(*clamped), (9, 0))
+
+
+class TestLearningPhase(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.TemporaryDirectory()
+        d = Path(cls.tmp.name)
+        cls.library = d / "library.yaml"
+        constant_weights(d / "catches.pt", 0.20, -0.05)
+        # learn, then apply, as a user runs them.
+        cls.learned = _cli("learn", "--object", OBJECT, "--weights",
+                           str(d / "catches.pt"), "--library", str(cls.library),
+                           "--json", str(d / "learn.json"), "--html",
+                           str(d / "learn.html"), "--plot", str(d / "search.png"))
+        cls.learn_json = (json.loads((d / "learn.json").read_text())
+                          if cls.learned.returncode == 0 else None)
+        cls.applied = _cli("apply", "--object", OBJECT, "--library",
+                           str(cls.library), "--json", str(d / "apply.json"))
+        cls.apply_json = (json.loads((d / "apply.json").read_text())
+                          if cls.applied.returncode == 0 else None)
+        # A search that fails and is stopped by a cap on the throws.
+        model, _ = load_weights(constant_weights(d / "misses.pt", 0.04, 0.0))
+        cls.capped_library = d / "capped.yaml"
+        cls.capped = learn(load_scenario(), load_catalogue()[OBJECT], model,
+                           ik=ArmIk(), library_path=cls.capped_library,
+                           max_throws=3, progress=None)
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.tmp.cleanup()
+
+    def test_learn_catches_and_counts_throws(self):
+        self.assertEqual(self.learned.returncode, 0, self.learned.stderr)
+        r = self.learn_json
+        for key in ("object", "caught", "throws", "sim_time_s", "wall_s",
+                    "attempts", "learned"):
+            self.assertIn(key, r)
+        self.assertTrue(r["caught"])
+        self.assertEqual(r["throws"], 1 + len(r["attempts"]))
+        self.assertEqual(r["attempts"][0]["throw"], 2)
+        # Throw 2 uses the cell of the network's prediction.
+        self.assertEqual(r["prediction"]["start_cell"], [4, 9])
+        self.assertEqual(r["attempts"][0]["cell"], [4, 9])
+        self.assertEqual((r["attempts"][0]["h_catch"],
+                          r["attempts"][0]["h_down"]), (0.2, -0.05))
+        self.assertEqual(r["attempts"][-1]["outcome"], "caught")
+        self.assertAlmostEqual(
+            r["sim_time_s"], r["watch"]["sim_time_s"]
+            + sum(a["sim_time_s"] for a in r["attempts"]), places=3)
+        self.assertGreater(r["wall_s"], sum(a["wall_s"] for a in r["attempts"]))
+        # One progress line per throw.
+        self.assertEqual(sum("throw " in line for line in
+                             self.learned.stderr.splitlines()), r["throws"])
+
+    def test_learned_entry_stored(self):
+        entry = load_library(self.library)[OBJECT]
+        r = self.learn_json
+        self.assertEqual((entry.h_catch, entry.h_down), (0.2, -0.05))
+        self.assertEqual(entry.throws, r["throws"])
+        self.assertEqual(entry.catch_point, r["plan"]["catch_point"])
+        self.assertEqual(entry.scenario, "defaults")
+
+    def test_apply_catches_in_one_throw(self):
+        self.assertEqual(self.applied.returncode, 0, self.applied.stderr)
+        a = self.apply_json
+        self.assertTrue(a["caught"])
+        self.assertEqual(a["throws"], 1)
+        self.assertEqual((a["h_catch"], a["h_down"]), (0.2, -0.05))
+        # The same throw as the learning phase's catch, to the last bit.
+        self.assertEqual(a["sim_time_s"],
+                         self.learn_json["attempts"][-1]["sim_time_s"])
+
+    def test_replay_holds_every_throw(self):
+        html = (Path(self.tmp.name) / "learn.html").read_text()
+        animation = run_replay._published_animation(html)
+        last = max(key["time"] for path in animation["animations"]
+                   for track in path["clip"]["tracks"] for key in track["keys"])
+        fps = animation["animations"][0]["clip"]["fps"]
+        total = self.learn_json["sim_time_s"]
+        # Every throw's frames, one after the other (with 0.5 s between).
+        self.assertGreaterEqual(last / fps, total - 0.05)
+        self.assertTrue((Path(self.tmp.name) / "search.png").stat().st_size
+                        > 10_000)
+
+    def test_capped_search_stops_and_stores_nothing(self):
+        r = self.capped
+        self.assertFalse(r.caught)
+        self.assertEqual(r.stopped, "max_throws")
+        self.assertEqual(r.throws, 3)
+        self.assertEqual(r.start_cell, (0, 14))
+        self.assertEqual([a.cell for a in r.attempts],
+                         wavefront_order((0, 14))[:2])
+        self.assertEqual([a.throw for a in r.attempts], [2, 3])
+        self.assertTrue(all(a.outcome != "caught" for a in r.attempts))
+        self.assertIsNone(r.learned)
+        self.assertFalse(self.capped_library.exists())
+
+
+class TestCommandErrors(unittest.TestCase):
+    """Refused before any throw, with one line naming what is wrong."""
+
+    def setUp(self):
+        self.tmp = tempfile.TemporaryDirectory()
+        self.d = Path(self.tmp.name)
+
+    def tearDown(self):
+        self.tmp.cleanup()
+
+    def _refused(self, result, *words):
+        self.assertEqual(result.returncode, 2, result.stderr)
+        lines = result.stderr.strip().splitlines()
+        self.assertEqual(len(lines), 1, result.stderr)
+        for word in words:
+            self.assertIn(word, lines[0])
+
+    def test_apply_before_learn(self):
+        self._refused(_cli("apply", "--object", OBJECT, cwd=self.d),
+                      OBJECT, "regrasp-drake learn", "regrasp_library.yaml")
+
+    def test_missing_and_corrupt_weights(self):
+        missing = self.d / "none.pt"
+        self._refused(_cli("learn", "--object", OBJECT, "--weights",
+                           str(missing)), "--weights", str(missing))
+        corrupt = self.d / "corrupt.pt"
+        corrupt.write_bytes(b"not a network")
+        self._refused(_cli("learn", "--object", OBJECT, "--weights",
+                           str(corrupt)), "--weights", str(corrupt))
+
+    def test_malformed_library(self):
+        library = self.d / "library.yaml"
+        library.write_text("format: regrasp_drake.library\nversion: 1\n"
+                           "objects: {table1-row2: {h_catch: 0.2}}\n")
+        self._refused(_cli("apply", "--object", OBJECT, "--library",
+                           str(library)), str(library), "objects.table1-row2")
+        # learn refuses it before throwing, not after its last throw.
+        weights = constant_weights(self.d / "w.pt", 0.2, -0.05)
+        result = _cli("learn", "--object", OBJECT, "--weights", str(weights),
+                      "--library", str(library))
+        self._refused(result, str(library), "objects.table1-row2")
+        self.assertNotIn("throw 1", result.stdout + result.stderr)
+
+
+class TestRunReplay(unittest.TestCase):
+    def test_episodes_follow_each_other(self):
+        """Two recordings on one Meshcat (each StartRecording starts afresh):
+        the run's replay holds both, the second shifted after the first, the
+        first's last pose held until then."""
+        replay = run_replay.RunReplay(gap_s=0.5)
+        meshcat = replay.meshcat
+        meshcat.SetObject("box", Box(0.1, 0.1, 0.1), Rgba(1, 0, 0, 1))
+        for x in (1.0, 2.0):
+            meshcat.StartRecording(set_visualizations_while_recording=False)
+            meshcat.SetTransform("box", RigidTransform([x, 0, 0]), 0.0)
+            meshcat.SetTransform("box", RigidTransform([x, 1, 0]), 1.0)
+            meshcat.StopRecording()
+            meshcat.PublishRecording()
+            replay.add_episode(1.0)
+        with tempfile.TemporaryDirectory() as d:
+            html = Path(replay.save(Path(d) / "run.html")).read_text()
+        animation = run_replay._published_animation(html)
+        (box,) = animation["animations"]
+        position = next(t for t in box["clip"]["tracks"]
+                        if t["name"] == ".position")
+        keys = {k["time"]: k["value"] for k in position["keys"]}
+        fps = box["clip"]["fps"]
+        self.assertEqual(keys[0], [1.0, 0.0, 0.0])
+        self.assertEqual(keys[fps], [1.0, 1.0, 0.0])
+        second = int(np.ceil(1.5 * fps))
+        self.assertEqual(keys[second - 1], [1.0, 1.0, 0.0])  # held
+        self.assertEqual(keys[second], [2.0, 0.0, 0.0])
+        self.assertEqual(keys[second + fps], [2.0, 1.0, 0.0])
+
+    def test_unpack_round_values(self):
+        data = bytes([0x83, 0xA1, 0x61, 0xC3, 0xA1, 0x62, 0x92, 0xCB])
+        data += np.float64(1.5).byteswap().tobytes() + bytes([0xFF])
+        data += bytes([0xA1, 0x63, 0xCD, 0x01, 0x00])
+        self.assertEqual(run_replay.unpack(data),
+                         {"a": True, "b": [1.5, -1], "c": 256})
+
+
+if __name__ == "__main__":
+    unittest.main()
