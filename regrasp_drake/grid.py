@@ -63,16 +63,18 @@ def read_rows(path: Path) -> dict:
 
 
 def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
-            progress=True) -> dict:
+            progress=True, only=None) -> dict:
     """Runs every cell of `obj`'s success map not yet in `out` (JSON lines,
     appended and flushed as each cell finishes); returns {cell: row}.
 
     The cells share one simulated throw up to their triggers (see
-    station/branching.py); `workers` simulations run at once."""
+    station/branching.py); `workers` simulations run at once. `only`: a
+    subset of the cells (a coarse map), default all."""
     from regrasp_drake.station.branching import run_cells
     out = Path(out)
     done = read_rows(out)
-    todo = [c for c in cells() if c not in done]
+    wanted = cells() if only is None else [tuple(c) for c in only]
+    todo = [c for c in wanted if c not in done]
     if not todo:
         return done
     start = time.perf_counter()
@@ -84,7 +86,7 @@ def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
             os.fsync(f.fileno())
             done[todo[i]] = row
             if progress:
-                _progress(len(done) - (len(cells()) - len(todo)), len(todo),
+                _progress(len(done) - (len(wanted) - len(todo)), len(todo),
                           start, obj.name)
         run_cells(scenario, obj, ik=ik, X_WG=plan.X_WG,
                   parameters=[cell_parameters(c) for c in todo],

@@ -48,11 +48,12 @@ def plan_catch(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     points = find_catch_points(logs.t, logs.object_state,
                                height_m=scenario.catch.catch_height_m,
                                tilt_tolerance=scenario.catch.tilt_tolerance,
-                               band_m=scenario.catch.height_band_m)
+                               band_m=scenario.catch.height_band_m,
+                               most_horizontal=True)
     if not points:
         raise InputError(
-            f"object {obj.name}: no catch point (the watched flight's axis is "
-            f"never horizontal within {scenario.catch.height_band_m} m of "
+            f"object {obj.name}: no catch point (the watched flight never "
+            f"descends within {scenario.catch.height_band_m} m of "
             f"catch.catch_height_m = {scenario.catch.catch_height_m} m)")
     reasons = []
     for point in points:

@@ -24,13 +24,14 @@ class RunCellsTest(unittest.TestCase):
 
     def test_forked_cells_equal_whole_episodes(self):
         # Rows that trigger at different times, and a catch and drops.
+        # (0.40 and 0.36 trigger at the same sample: one shared simulation.)
         parameters = [(0.40, -0.05), (0.20, -0.09), (0.08, -0.13),
-                      (0.20, 0.0)]
+                      (0.20, 0.0), (0.36, -0.05)]
         finished = []
         rows = run_cells(self.scenario, self.obj, ik=self.ik,
                          X_WG=self.plan.X_WG, parameters=parameters,
                          workers=2, on_result=lambda i, row: finished.append(i))
-        self.assertEqual(sorted(finished), [0, 1, 2, 3])
+        self.assertEqual(sorted(finished), [0, 1, 2, 3, 4])
         outcomes = set()
         for (h_catch, h_down), row in zip(parameters, rows):
             whole = run_episode(self.scenario, self.obj, ik=self.ik,

@@ -6,7 +6,9 @@ h_catch, a catch episode does not depend on (h_catch, h_down) at all: the
 throw, the move to the grasp position and the wait are the same simulation
 for every cell. A cell's history parts from the others at its trigger: the
 first sensor sample in WAIT at which the approach distance is below its
-h_catch (h_down is read there too). So one parent simulation runs the shared
+h_catch (h_down is read there too; neither is read again). Cells whose rows
+trigger at the same sample with the same h_down are therefore one and the
+same simulation, run once. So one parent simulation runs the shared
 history with a parameter that never triggers (h_catch = 0), and at each
 sample checks, before the state machine's update at that time runs, which
 rows of h_catch would trigger now; for each such cell it forks the process
@@ -79,8 +81,9 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
             if on_result is not None:
                 on_result(i, rows[i])
 
-    def fork(i):
-        """A child process runs cell i from here to its outcome."""
+    def fork(group):
+        """A child process runs the first cell of `group` from here to its
+        outcome; it is the outcome of every cell in the group (see below)."""
         while len(children) >= max(1, workers):
             finish(next(iter(children)))
         read_fd, write_fd = os.pipe()
@@ -89,13 +92,14 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
             try:
                 os.close(read_fd)
                 result = _run_child(simulator, station, scenario, source,
-                                    source_context, parameters[i], t_final)
+                                    source_context, parameters[group[0]],
+                                    t_final)
                 with os.fdopen(write_fd, "wb") as f:
-                    f.write(pickle.dumps([result]))
+                    f.write(pickle.dumps([result] * len(group)))
             finally:
                 os._exit(0)
         os.close(write_fd)
-        children[pid] = (read_fd, [i])
+        children[pid] = (read_fd, group)
 
     message = ""
     k = 0
@@ -112,11 +116,15 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
         # What the state machine's check at this time will read.
         distance = (float(np.min(ir.GetOutputPort("ir_levels").Eval(
             ir_context)[3:])) / levels * approach_range)
+        triggered = []
         while waiting and distance < waiting[0]:
-            h_catch = waiting.pop(0)
-            for i, (h, _) in enumerate(parameters):
-                if h == h_catch:
-                    fork(i)
+            triggered.append(waiting.pop(0))
+        # Rows that trigger at the same sample share their history to here,
+        # and h_catch is never read again: cells with the same h_down are one
+        # simulation.
+        for h_down in sorted({d for h, d in parameters if h in triggered}):
+            fork([i for i, (h, d) in enumerate(parameters)
+                  if h in triggered and d == h_down])
     # Cells that never triggered share the parent's history to its end.
     if any(h in waiting for h, _ in parameters):
         if not message and read_outcome(station, context, "")[0] == "running":

@@ -124,7 +124,7 @@ class MonitorConfig:
     bumper_window_s: float = 0.15
     # After the hand is back at the grasp position, the object must still be
     # held this long for the catch to count, [s].
-    hold_s: float = 0.4
+    hold_s: float = 0.25
     # The object is dropped when its centre falls this far below the palm
     # surface, [m], or comes within `ground_clearance_m` of the ground.
     below_palm_m: float = 0.08

@@ -1,0 +1,278 @@
+"""The training data: each training object's success map and its label.
+
+For every object: the watching throw and the offline stage (the catch point
+and its v_catch), then one catch episode per cell of the 150-cell parameter
+space (the success map; cells share the simulated throw up to their trigger,
+see station/branching.py). The label of an object is the catching cell most
+robust to error:
+
+    robustness(c) = the Chebyshev distance (in cells) from c to the nearest
+                    cell that does not catch (cells beyond the grid's edge
+                    are not failures; a map with no failure gives every
+                    catching cell the largest distance, 15).
+    label = argmax robustness over the catching cells; ties go to the cell
+            nearest (Euclidean, in cells) to the mean of the tied cells, then
+            to the lowest (h_catch index, h_down index).
+
+An object none of whose cells catches has no label and is left out of the
+training samples (the data set says so).
+
+Files, under the output directory:
+    cells/<object>.jsonl   one line per finished cell, appended and flushed
+                           as it finishes (a killed run resumes from these);
+    plans/<object>.json    the object's features, catch point and v_catch;
+    samples.csv            one row per labelled object: features and label;
+    maps.npz               objects × 10 × 15 outcomes (1 caught, 0 not);
+    provenance.json        scenario, catalogue hash, code version, timing.
+"""
+
+import csv
+import hashlib
+import json
+import multiprocessing
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from regrasp_drake import grid
+from regrasp_drake.errors import InputError
+from regrasp_drake.paths import REPO_DIR
+
+FEATURE_NAMES = ("v_catch", "h_cm", "r_cm", "d_obj", "v_conv")
+SHAPE = (len(grid.H_CATCH_VALUES), len(grid.H_DOWN_VALUES))
+
+
+# ---- labels ------------------------------------------------------------------
+def robustness(caught: np.ndarray) -> np.ndarray:
+    """Per cell, the Chebyshev distance (cells) to the nearest failed cell;
+    0 for failed cells. `caught`: a boolean array of SHAPE."""
+    failed = np.argwhere(~caught)
+    out = np.zeros(caught.shape, int)
+    for i, j in np.argwhere(caught):
+        if len(failed) == 0:
+            out[i, j] = max(caught.shape)
+        else:
+            out[i, j] = int(np.min(np.maximum(np.abs(failed[:, 0] - i),
+                                              np.abs(failed[:, 1] - j))))
+    return out
+
+
+def label_cell(caught: np.ndarray) -> tuple[int, int] | None:
+    """The label of a success map (see the module's docstring), or None."""
+    r = robustness(caught)
+    if r.max() == 0:
+        return None
+    best = np.argwhere(r == r.max())
+    mean = best.mean(axis=0)
+    key = [(float(np.sum((c - mean) ** 2)), int(c[0]), int(c[1])) for c in best]
+    _, i, j = min(key)
+    return (i, j)
+
+
+# ---- generation --------------------------------------------------------------
+def _object_task(args):
+    """One object's plan and map (in a worker process); returns its name."""
+    scenario_path, name, out_dir, only = args
+    import torch
+    from regrasp_drake.planning.ik import ArmIk
+    from regrasp_drake.station.scenario import load_scenario
+    from regrasp_drake.world.objects import resolve_object
+    torch.set_num_threads(1)
+    scenario = load_scenario(scenario_path)
+    obj = resolve_object(name=name)
+    ik = ArmIk()
+    out_dir = Path(out_dir)
+    try:
+        plan = grid.plan_object(scenario, obj, ik)
+    except InputError as e:  # no reachable catch point: recorded, no map
+        _write_json(out_dir / "plans" / f"{name}.json",
+                    {"object": name, "usable": False, "reason": str(e)})
+        return name
+    features = {"v_catch": float(plan.catch_point.v_catch)} | obj.features()
+    _write_json(out_dir / "plans" / f"{name}.json",
+                {"object": name, "usable": True, "features": features,
+                 "plan": plan.as_dict()})
+    grid.run_map(scenario, obj, ik, plan, out_dir / "cells" / f"{name}.jsonl",
+                 workers=1, progress=False, only=only)
+    return name
+
+
+def _write_json(path: Path, data) -> None:
+    """Writes atomically (a kill leaves the old file or the new one)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(data, indent=1) + "\n")
+    os.replace(tmp, path)
+
+
+def _object_done(out_dir: Path, name: str, only) -> bool:
+    plan = out_dir / "plans" / f"{name}.json"
+    if not plan.exists():
+        return False
+    if not json.loads(plan.read_text()).get("usable"):
+        return True
+    rows = grid.read_rows(out_dir / "cells" / f"{name}.jsonl")
+    wanted = grid.cells() if only is None else [tuple(c) for c in only]
+    return all(c in rows for c in wanted)
+
+
+def generate(names: list[str], out_dir: Path, *, workers: int = 1,
+             backend: str = "process", scenario_path=None,
+             progress: bool = True, only=None) -> dict:
+    """Computes every object's plan and map not yet in out_dir, then writes
+    samples.csv, maps.npz and provenance.json. Returns the provenance.
+    `only`: a subset of the cells (a coarse data set; the cells left out
+    count as not catching)."""
+    if backend not in ("process", "ray"):
+        raise InputError(f"--backend: got {backend!r}, expected process or ray")
+    if workers < 1:
+        raise InputError(f"--workers: got {workers}, expected >= 1")
+    out_dir = Path(out_dir)
+    (out_dir / "cells").mkdir(parents=True, exist_ok=True)
+    todo = [n for n in names if not _object_done(out_dir, n, only)]
+    start = time.perf_counter()
+    tasks = [(None if scenario_path is None else str(scenario_path), n,
+              str(out_dir), only) for n in todo]
+    if tasks:
+        runner = _run_ray if backend == "ray" else _run_processes
+        for k, name in enumerate(runner(tasks, workers), 1):
+            if progress:
+                _progress(k, len(tasks), start, name)
+        if progress:
+            print(file=sys.stderr)
+    wall_s = time.perf_counter() - start
+    return assemble(names, out_dir, scenario_path=scenario_path,
+                    wall_s=wall_s, workers=workers, backend=backend)
+
+
+def _run_processes(tasks, workers):
+    if workers == 1:
+        for task in tasks:
+            yield _object_task(task)
+        return
+    ctx = multiprocessing.get_context("fork")
+    with ctx.Pool(workers, maxtasksperchild=1) as pool:
+        yield from pool.imap_unordered(_object_task, tasks)
+
+
+def _run_ray(tasks, workers):
+    try:
+        import ray
+    except ImportError:
+        raise InputError("--backend ray: Ray is not installed (pip install "
+                         "'regrasp-drake[ray]')") from None
+    # RAY_ADDRESS names the cluster; unset, a local Ray starts.
+    ray.init(address=os.environ.get("RAY_ADDRESS"), ignore_reinit_error=True,
+             log_to_driver=False)
+    remote = ray.remote(num_cpus=1)(_object_task)
+    pending = [remote.remote(t) for t in tasks]
+    while pending:
+        ready, pending = ray.wait(pending, num_returns=1)
+        yield ray.get(ready[0])
+
+
+def _progress(n, total, start, name):
+    elapsed = time.perf_counter() - start
+    rate = n / elapsed if elapsed > 0 else 0.0
+    left = (total - n) / rate if rate > 0 else float("inf")
+    bar = "#" * int(30 * n / total)
+    print(f"\r[{bar:<30}] {n}/{total} objects ({name}), "
+          f"{rate * 60:.1f} objects/min, {left / 60:.1f} min left   ",
+          end="", file=sys.stderr, flush=True)
+
+
+# ---- assembly ----------------------------------------------------------------
+def load_map(out_dir: Path, name: str) -> np.ndarray:
+    """The object's map as a boolean array of SHAPE (True: caught; a cell
+    not run counts as not caught)."""
+    rows = grid.read_rows(Path(out_dir) / "cells" / f"{name}.jsonl")
+    caught = np.zeros(SHAPE, bool)
+    for (i, j), row in rows.items():
+        caught[i, j] = row["outcome"] == "caught"
+    return caught
+
+
+def assemble(names, out_dir: Path, *, scenario_path=None, wall_s=None,
+             workers=None, backend=None) -> dict:
+    """Writes samples.csv, maps.npz and provenance.json from the per-object
+    files (objects in `names` order)."""
+    from pydrake.common.yaml import yaml_dump_typed
+    from regrasp_drake.station.scenario import Scenario, load_scenario
+    from regrasp_drake.world.objects import CATALOGUE_PATH
+    out_dir = Path(out_dir)
+    maps, samples, unusable, unlabelled = [], [], [], []
+    for name in names:
+        plan = json.loads((out_dir / "plans" / f"{name}.json").read_text())
+        if not plan["usable"]:
+            unusable.append({"object": name, "reason": plan["reason"]})
+            continue
+        caught = load_map(out_dir, name)
+        maps.append(caught)
+        cell = label_cell(caught)
+        if cell is None:
+            unlabelled.append(name)
+            continue
+        h_catch, h_down = grid.cell_parameters(cell)
+        samples.append({"object": name} | plan["features"] | {
+            "h_catch": h_catch, "h_down": h_down,
+            "label_i_catch": cell[0], "label_i_down": cell[1],
+            "robustness": int(robustness(caught)[cell]),
+            "cells_caught": int(caught.sum())})
+    usable = [n for n in names if n not in {u["object"] for u in unusable}]
+    np.savez_compressed(out_dir / "maps.npz", objects=np.array(usable),
+                        caught=np.array(maps, bool).reshape(-1, *SHAPE),
+                        h_catch=grid.H_CATCH_VALUES, h_down=grid.H_DOWN_VALUES)
+    with (out_dir / "samples.csv").open("w", newline="") as f:
+        fields = (["object", *FEATURE_NAMES, "h_catch", "h_down",
+                   "label_i_catch", "label_i_down", "robustness",
+                   "cells_caught"])
+        writer = csv.DictWriter(f, fieldnames=fields)
+        writer.writeheader()
+        writer.writerows(samples)
+    provenance = {
+        "objects": len(names), "maps": len(maps), "samples": len(samples),
+        "unusable": unusable, "unlabelled": unlabelled,
+        "label_rule": "most robust catching cell (Chebyshev distance to the "
+                      "nearest failed cell); ties: nearest the tied cells' "
+                      "mean, then lowest indices",
+        "scenario": yaml_dump_typed(load_scenario(scenario_path),
+                                    schema=Scenario),
+        "catalogue_sha256": hashlib.sha256(
+            Path(CATALOGUE_PATH).read_bytes()).hexdigest(),
+        "code_version": _code_version(),
+        "generation_wall_s": None if wall_s is None else round(wall_s, 1),
+        "workers": workers, "backend": backend,
+    }
+    _write_json(out_dir / "provenance.json", provenance)
+    return provenance
+
+
+def load_samples(data_dir: Path) -> list[dict]:
+    """The samples of a data set, with numbers as floats."""
+    path = Path(data_dir) / "samples.csv"
+    if not path.exists():
+        raise InputError(f"{path}: no such data set (run `regrasp-drake "
+                         "dataset` first)")
+    with path.open() as f:
+        rows = list(csv.DictReader(f))
+    for row in rows:
+        for k, v in row.items():
+            if k != "object":
+                row[k] = float(v)
+    return rows
+
+
+def _code_version() -> str:
+    try:
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO_DIR,
+                                capture_output=True, text=True, check=True)
+        dirty = subprocess.run(["git", "status", "--porcelain", "--",
+                                "regrasp_drake", "sdf"], cwd=REPO_DIR,
+                               capture_output=True, text=True, check=True)
+        return commit.stdout.strip() + ("+dirty" if dirty.stdout.strip() else "")
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"

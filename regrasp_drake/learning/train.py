@@ -1,0 +1,178 @@
+"""Training the catch network on the data set, and judging it (issue 5).
+
+The paper's network: 5 inputs (v_catch, h_cm, r_cm, d_obj, v_conv), 13 tanh
+neurons, 2 outputs (h_catch, h_down); its 64 samples split 44 / 10 / 10 at
+random into training, validation and test. Here the split keeps those
+proportions for any number of samples, drawn with a fixed seed. Inputs and
+outputs are normalized by the training split's means and standard deviations
+(kept in the weights file). Full-batch Adam on the mean squared error of the
+normalized outputs; the weights kept are those of the epoch with the lowest
+validation loss.
+
+Judged on the test split: the error of (h_catch, h_down), and how often the
+predicted parameters' cell catches (read from the object's success map),
+against two baselines: the single cell that catches the most training
+objects, used for every object; and the mean of the training labels.
+"""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from regrasp_drake import grid
+from regrasp_drake.errors import InputError
+from regrasp_drake.learning.dataset import FEATURE_NAMES, load_samples
+from regrasp_drake.station.mlp_system import (CatchMlp, ParameterSpace,
+                                              save_weights)
+
+SPLIT = (44, 10, 10)  # the paper's training / validation / test counts
+
+
+def split_indices(n: int, seed: int = 0) -> tuple[list, list, list]:
+    """A random split of n samples in the paper's 44 / 10 / 10 proportions.
+    Fewer than 3 samples (a smoke-test data set) cannot be split: all three
+    splits are then all the samples."""
+    if n < 1:
+        raise InputError("data set: no samples (no object caught in any cell)")
+    if n < 3:
+        return list(range(n)), list(range(n)), list(range(n))
+    order = np.random.default_rng(seed).permutation(n).tolist()
+    n_val = max(1, round(n * SPLIT[1] / sum(SPLIT)))
+    n_test = max(1, round(n * SPLIT[2] / sum(SPLIT)))
+    n_train = n - n_val - n_test
+    return (sorted(order[:n_train]), sorted(order[n_train:n_train + n_val]),
+            sorted(order[n_train + n_val:]))
+
+
+def _arrays(samples):
+    x = np.array([[s[f] for f in FEATURE_NAMES] for s in samples], float)
+    y = np.array([[s["h_catch"], s["h_down"]] for s in samples], float)
+    return x, y
+
+
+def train(data_dir: Path, out: Path, *, seed: int = 0, epochs: int = 3000,
+          learning_rate: float = 0.01, curve_png: Path | None = None) -> dict:
+    """Trains on data_dir's samples, writes the weights to `out` (and the
+    training curve PNG), and returns the report (also written next to the
+    weights as <out>.json)."""
+    data_dir, out = Path(data_dir), Path(out)
+    samples = load_samples(data_dir)
+    train_i, val_i, test_i = split_indices(len(samples), seed)
+    x, y = _arrays(samples)
+    torch.manual_seed(seed)
+    model = CatchMlp()
+    model.set_normalization(torch.as_tensor(x[train_i]),
+                            torch.as_tensor(y[train_i]))
+    xt = {k: torch.as_tensor(x[i]) for k, i in
+          (("train", train_i), ("val", val_i))}
+    yt = {k: (torch.as_tensor(y[i]) - model.output_mean) / model.output_std
+          for k, i in (("train", train_i), ("val", val_i))}
+
+    def loss(split):
+        pred = (model(xt[split]) - model.output_mean) / model.output_std
+        return torch.mean((pred - yt[split]) ** 2)
+
+    optimizer = torch.optim.Adam(model.parameters(), lr=learning_rate)
+    curve = {"train": [], "val": []}
+    best = (float("inf"), 0, None)
+    for epoch in range(epochs):
+        optimizer.zero_grad()
+        training_loss = loss("train")
+        training_loss.backward()
+        optimizer.step()
+        with torch.no_grad():
+            validation_loss = float(loss("val"))
+        curve["train"].append(float(training_loss.detach()))
+        curve["val"].append(validation_loss)
+        if validation_loss < best[0]:
+            best = (validation_loss, epoch,
+                    {k: v.clone() for k, v in model.state_dict().items()})
+    model.load_state_dict(best[2])
+    model.eval()
+
+    report = evaluate(model, samples, data_dir, train_i, test_i)
+    report |= {
+        "samples": len(samples),
+        "split": {"train": [samples[i]["object"] for i in train_i],
+                  "validation": [samples[i]["object"] for i in val_i],
+                  "test": [samples[i]["object"] for i in test_i]},
+        "seed": seed, "epochs": epochs, "best_epoch": best[1],
+        "best_validation_loss": best[0],
+        "final_training_loss": curve["train"][-1],
+    }
+    provenance = json.loads((data_dir / "provenance.json").read_text()) \
+        if (data_dir / "provenance.json").exists() else {}
+    metadata = {
+        "features": list(FEATURE_NAMES), "outputs": ["h_catch", "h_down"],
+        "hidden": 13, "seed": seed, "epochs": epochs, "best_epoch": best[1],
+        "data": {"samples": len(samples),
+                 "code_version": provenance.get("code_version"),
+                 "catalogue_sha256": provenance.get("catalogue_sha256")},
+        "split": report["split"],
+    }
+    out.parent.mkdir(parents=True, exist_ok=True)
+    save_weights(out, model, metadata)
+    out.with_suffix(".json").write_text(json.dumps(report, indent=1) + "\n")
+    if curve_png is not None:
+        _plot_curve(curve, best[1], curve_png)
+    return report
+
+
+def evaluate(model, samples, data_dir, train_i, test_i) -> dict:
+    """Test-split errors and catch rates, with the two baselines."""
+    with np.load(Path(data_dir) / "maps.npz") as data:
+        maps = dict(zip(data["objects"].tolist(), data["caught"]))
+    x, y = _arrays(samples)
+    space = ParameterSpace()
+    with torch.no_grad():
+        pred = model(torch.as_tensor(x[test_i])).numpy()
+    pred = np.array([space.clamp(*p) for p in pred])
+    # Baselines from the training split only.
+    train_maps = np.array([maps[samples[i]["object"]] for i in train_i])
+    best_cell = tuple(int(c) for c in np.unravel_index(
+        np.argmax(train_maps.sum(axis=0)), train_maps.shape[1:]))
+    mean_label = y[train_i].mean(axis=0)
+
+    def rate(cell_for):
+        hits = [bool(maps[samples[i]["object"]][cell_for(k)])
+                for k, i in enumerate(test_i)]
+        return sum(hits) / len(hits)
+
+    def error(p):
+        e = np.abs(np.asarray(p) - y[test_i])
+        return {"h_catch_mae_m": round(float(e[:, 0].mean()), 4),
+                "h_down_mae_m": round(float(e[:, 1].mean()), 4)}
+
+    return {
+        "test": {
+            "network": error(pred) | {"catch_rate": rate(
+                lambda k: grid.nearest_cell(*pred[k]))},
+            "best_constant_cell": error(
+                [grid.cell_parameters(best_cell)] * len(test_i)) | {
+                "cell": list(grid.cell_parameters(best_cell)),
+                "catch_rate": rate(lambda k: best_cell)},
+            "mean_label": error([mean_label] * len(test_i)) | {
+                "parameters": [round(float(v), 4) for v in mean_label],
+                "catch_rate": rate(lambda k: grid.nearest_cell(*mean_label))},
+            "objects": [samples[i]["object"] for i in test_i],
+        },
+    }
+
+
+def _plot_curve(curve, best_epoch, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.semilogy(curve["train"], label="training")
+    ax.semilogy(curve["val"], label="validation")
+    ax.axvline(best_epoch, color="k", ls=":", label=f"kept (epoch {best_epoch})")
+    ax.set_xlabel("epoch")
+    ax.set_ylabel("MSE of normalized (h_catch, h_down)")
+    ax.legend()
+    ax.set_title("Catch network training")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

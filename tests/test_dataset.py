@@ -1,0 +1,131 @@
+"""The data set: labels, generation, resuming after a kill, determinism."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+import unittest
+from pathlib import Path
+
+import numpy as np
+
+from regrasp_drake.learning.dataset import (SHAPE, generate, label_cell,
+                                            load_map, robustness)
+
+OBJECTS = ["table1-row2", "table1-row1"]
+# A coarse grid: h_catch 0.12, 0.28 × h_down -0.11, -0.05.
+COARSE = [(i, j) for i in (2, 6) for j in (3, 9)]
+
+
+class LabelTest(unittest.TestCase):
+    def test_robustness_is_distance_to_nearest_failure(self):
+        caught = np.zeros(SHAPE, bool)
+        caught[2:7, 3:10] = True  # a 5 × 7 block of catches
+        r = robustness(caught)
+        self.assertEqual(r[0, 0], 0)
+        self.assertEqual(r[2, 3], 1)   # on the block's edge
+        self.assertEqual(r[4, 6], 3)   # its centre
+        self.assertEqual(label_cell(caught), (4, 6))
+
+    def test_ties_go_to_the_middle_then_low_indices(self):
+        caught = np.zeros(SHAPE, bool)
+        caught[0, 0:3] = True  # three cells of robustness 1
+        self.assertEqual(label_cell(caught), (0, 1))
+        caught = np.zeros(SHAPE, bool)
+        caught[5, 5] = caught[5, 9] = True  # equal, mean between them
+        self.assertEqual(label_cell(caught), (5, 5))
+
+    def test_no_catch_no_label(self):
+        self.assertIsNone(label_cell(np.zeros(SHAPE, bool)))
+        self.assertEqual(robustness(np.ones(SHAPE, bool)).min(), 15)
+
+
+def _rows(out: Path) -> dict:
+    """Every object's cells, without wall times (the only thing that may
+    differ between runs)."""
+    rows = {}
+    for name in OBJECTS:
+        for line in (out / "cells" / f"{name}.jsonl").read_text().splitlines():
+            row = json.loads(line)
+            row.pop("wall_s")
+            rows[(name, tuple(row["cell"]))] = row
+    return rows
+
+
+class GenerateTest(unittest.TestCase):
+    """Two objects on a coarse grid: serial, with 2 workers, and with 2
+    workers killed mid-run and resumed, give the same rows."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.TemporaryDirectory()
+        cls.root = Path(cls.tmp.name)
+        cls.serial = generate(OBJECTS, cls.root / "serial", workers=1,
+                              only=COARSE, progress=False)
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.tmp.cleanup()
+
+    def test_serial_files(self):
+        out = self.root / "serial"
+        self.assertEqual(self.serial["maps"], 2)
+        for name in OBJECTS:
+            lines = (out / "cells" / f"{name}.jsonl").read_text().splitlines()
+            self.assertEqual(len(lines), len(COARSE))
+            caught = load_map(out, name)
+            self.assertEqual(caught.shape, SHAPE)
+            # Only the coarse cells can catch.
+            self.assertFalse(np.any(np.delete(caught.ravel(), [
+                i * SHAPE[1] + j for i, j in COARSE])))
+        samples = (out / "samples.csv").read_text().splitlines()
+        self.assertEqual(len(samples), 1 + self.serial["samples"])
+        self.assertGreaterEqual(self.serial["samples"], 1)
+        with np.load(out / "maps.npz") as maps:
+            self.assertEqual(maps["caught"].shape, (2, *SHAPE))
+        provenance = json.loads((out / "provenance.json").read_text())
+        self.assertIn("time_step_s", provenance["scenario"])
+        self.assertEqual(len(provenance["catalogue_sha256"]), 64)
+
+    def test_two_workers_same_rows(self):
+        generate(OBJECTS, self.root / "two", workers=2, only=COARSE,
+                 progress=False)
+        self.assertEqual(_rows(self.root / "two"), _rows(self.root / "serial"))
+
+    def test_killed_and_resumed_same_rows(self):
+        out = self.root / "killed"
+        code = ("from regrasp_drake.learning.dataset import generate; "
+                f"generate({OBJECTS!r}, {str(out)!r}, workers=2, "
+                f"only={COARSE!r}, progress=False)")
+        process = subprocess.Popen([sys.executable, "-c", code],
+                                   start_new_session=True,
+                                   stderr=subprocess.DEVNULL)
+        # Kill the whole run (workers and their children) once some cells
+        # are written but not all.
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            written = sum(len(p.read_text().splitlines())
+                          for p in (out / "cells").glob("*.jsonl")) \
+                if (out / "cells").exists() else 0
+            if written >= 3:
+                break
+            time.sleep(0.05)
+        os.killpg(process.pid, signal.SIGKILL)
+        process.wait()
+        written = sum(len(p.read_text().splitlines())
+                      for p in (out / "cells").glob("*.jsonl"))
+        self.assertLess(written, 2 * len(COARSE), "killed too late to test")
+        generate(OBJECTS, out, workers=2, only=COARSE, progress=False)
+        self.assertEqual(_rows(out), _rows(self.root / "serial"))
+        for name in OBJECTS:  # no duplicate rows
+            lines = (out / "cells" / f"{name}.jsonl").read_text().splitlines()
+            cells = [tuple(json.loads(x)["cell"]) for x in lines
+                     if x.strip().endswith("}")]
+            self.assertEqual(len(cells), len(set(cells)))
+
+
+if __name__ == "__main__":
+    unittest.main()
