@@ -190,6 +190,59 @@ def _cmd_apply(args) -> int:
     return 0
 
 
+def _cmd_dataset(args) -> int:
+    from regrasp_drake.learning.dataset import generate
+    from regrasp_drake.paths import MODELS_DIR
+    from regrasp_drake.station.scenario import load_scenario
+    from regrasp_drake.world.objects import load_catalogue
+    load_scenario(args.scenario)  # refuse a bad scenario before any work
+    catalogue = load_catalogue()
+    names = args.objects or [n for n, o in catalogue.items()
+                             if o.set == "train"]
+    for name in names:
+        if name not in catalogue:
+            raise InputError(f"--objects: got {name!r}, expected a catalogue "
+                             "object (see `regrasp-drake objects`)")
+    out = args.out or MODELS_DIR / "dataset"
+    provenance = generate(names, out, workers=args.workers,
+                          backend=args.backend, scenario_path=args.scenario)
+    print(json.dumps({k: v for k, v in provenance.items() if k != "scenario"},
+                     indent=1))
+    return 0
+
+
+def _cmd_train(args) -> int:
+    import torch
+    from regrasp_drake.learning.train import train
+    from regrasp_drake.paths import MODELS_DIR
+    torch.set_num_threads(1)
+    data = args.data or MODELS_DIR / "dataset"
+    out = args.out or MODELS_DIR / "catch_mlp.pt"
+    report = train(data, out, seed=args.seed,
+                   curve_png=out.with_name(out.stem + "_training.png"))
+    print(json.dumps({k: v for k, v in report.items() if k != "split"},
+                     indent=1))
+    print(f"weights: {out}; report: {out.with_suffix('.json')}; curve: "
+          f"{out.with_name(out.stem + '_training.png')}", file=sys.stderr)
+    return 0
+
+
+def _cmd_table1(args) -> int:
+    import torch
+    from regrasp_drake.learning.table1 import (format_markdown, run_table1,
+                                               write_outputs)
+    from regrasp_drake.planning.ik import ArmIk
+    from regrasp_drake.station.scenario import load_scenario
+    torch.set_num_threads(1)
+    scenario = load_scenario(args.scenario)
+    model = _load_network(args, scenario)
+    rows = run_table1(scenario, model, ik=ArmIk(), library_path=args.library,
+                      maps_dir=None if args.no_maps else args.maps_dir)
+    print(format_markdown(rows))
+    write_outputs(rows, args.json, args.markdown)
+    return 0
+
+
 def make_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="regrasp-drake",
@@ -264,6 +317,45 @@ def make_parser() -> argparse.ArgumentParser:
                    help="the Meshcat replay of the throw, one HTML file")
     p.add_argument("--json", type=Path, metavar="F", help="write the result")
     p.set_defaults(func=_cmd_apply)
+
+    p = sub.add_parser("dataset", help="success maps and labels of the "
+                                       "training objects (resumable)")
+    _add_scenario_arg(p)
+    p.add_argument("--objects", nargs="+", metavar="NAME",
+                   help="catalogue objects (default: every training object)")
+    p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+                   metavar="N", help="parallel objects (default: all cores)")
+    p.add_argument("--backend", choices=("process", "ray"), default="process",
+                   help="local processes, or Ray (RAY_ADDRESS, else local)")
+    p.add_argument("--out", type=Path, metavar="DIR",
+                   help="output directory (default models/dataset)")
+    p.set_defaults(func=_cmd_dataset)
+
+    p = sub.add_parser("train", help="train the catch network on a data set")
+    p.add_argument("--data", type=Path, metavar="DIR",
+                   help="data set directory (default models/dataset)")
+    p.add_argument("--out", type=Path, metavar="F",
+                   help="weights file (default models/catch_mlp.pt)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the split and the initial weights")
+    p.set_defaults(func=_cmd_train)
+
+    p = sub.add_parser("table1", help="the paper's Table 1: the learning "
+                                      "phase on its five test objects")
+    _add_scenario_arg(p)
+    _add_library_arg(p)
+    p.add_argument("--weights", type=Path, metavar="F",
+                   help="the MLP's weights file (default: the scenario's "
+                        "catch.weights in models/)")
+    p.add_argument("--json", type=Path, metavar="F", help="write the rows")
+    p.add_argument("--markdown", type=Path, metavar="F",
+                   help="write the table")
+    p.add_argument("--maps-dir", type=Path, default=Path("table1-maps"),
+                   metavar="DIR", help="each test object's success map, with "
+                   "the search marked (JSON lines + PNG; default table1-maps)")
+    p.add_argument("--no-maps", action="store_true",
+                   help="skip the success maps (150 episodes per object)")
+    p.set_defaults(func=_cmd_table1)
     return parser
 
 

@@ -90,6 +90,28 @@ class GenerateTest(unittest.TestCase):
         self.assertIn("time_step_s", provenance["scenario"])
         self.assertEqual(len(provenance["catalogue_sha256"]), 64)
 
+    def test_train_and_predict(self):
+        """The tiny set trains, and the saved network predicts inside the
+        parameter space for each sample."""
+        from regrasp_drake.learning.learning_phase import predict
+        from regrasp_drake.learning.train import train
+        from regrasp_drake.station.mlp_system import load_weights
+        out = self.root / "net" / "w.pt"
+        report = train(self.root / "serial", out, epochs=200,
+                       curve_png=self.root / "net" / "curve.png")
+        self.assertTrue((self.root / "net" / "curve.png").stat().st_size > 1000)
+        model, metadata = load_weights(out)
+        self.assertEqual(metadata["features"],
+                         ["v_catch", "h_cm", "r_cm", "d_obj", "v_conv"])
+        self.assertLess(report["final_training_loss"], 1.0)
+        rows = (self.root / "serial" / "samples.csv").read_text().splitlines()
+        for line in rows[1:]:
+            values = line.split(",")
+            _, (h_catch, h_down) = predict(model, [float(v) for v in values[1:6]])
+            self.assertTrue(0.0 <= h_catch <= 0.40 and -0.14 <= h_down <= 0.0)
+        for name in ("network", "best_constant_cell", "mean_label"):
+            self.assertIn(report["test"][name]["catch_rate"], (0.0, 0.5, 1.0))
+
     def test_two_workers_same_rows(self):
         generate(OBJECTS, self.root / "two", workers=2, only=COARSE,
                  progress=False)

@@ -25,9 +25,10 @@ from pydrake.systems.framework import LeafSystem
 
 from regrasp_drake.errors import InputError, field_error
 
-# The network's inputs, in order: the catch velocity (m/s), the height (m) and
-# radius (m) of the object's centre of mass, the object's size (m), and the
-# convergence velocity (m/s) (paper §V).
+# The network's inputs, in order (paper §V): the object's vertical velocity at
+# the catch point (m/s), the height h_cm and radius r_cm (m) of its centre of
+# mass in the object frame, its density d_obj (kg/m³), and v_conv, its number
+# of convex vertices.
 FEATURE_NAMES = ("v_catch", "h_cm", "r_cm", "d_obj", "v_conv")
 # The network's outputs, in order: the catch height and the height the hand
 # moves down while catching (m).

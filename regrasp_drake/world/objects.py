@@ -28,7 +28,7 @@ Pieces (lengths in metres, all axis-aligned in O):
   - ``grasp`` (optional, default false): exactly one piece has it; it is a
     cylinder or a capsule with axis y centred at the origin.
 Pieces must not overlap (they may touch) and must form one connected body.
-Objects: ``name`` (unique), ``set`` (train|test), ``geometry`` (a key of the
+Objects: ``name`` (unique), ``set`` (train|test|holdout), ``geometry`` (a key of the
 same file's ``geometries``), ``density`` (kg/m³, the object's mean density,
 the feature d_obj), ``h_cm`` and ``r_cm`` (m). Every key listed is required,
 unknown keys are refused.
@@ -84,7 +84,7 @@ CATALOGUE_PATH = (
 MIN_BASE_DENSITY = 20.0  # kg/m³, the lightest base material (rigid foam).
 MAX_BALLAST_DENSITY = 20_000.0  # kg/m³, a little above tungsten (19 300).
 
-SETS = ("train", "test")
+SETS = ("train", "test", "holdout")
 AXES = {"x": 0, "y": 1, "z": 2}
 _PIECE_KEYS = {
     "cylinder": ("radius", "length", "axis", "center"),
@@ -345,12 +345,10 @@ def add_object(
 
 
 def load_catalogue(path: Path | str = CATALOGUE_PATH) -> dict[str, ObjectSpec]:
-    """The objects of the catalogue by name, training objects then test
-    objects, each set in file order."""
+    """The objects of the catalogue by name, training objects, then test
+    objects, then held-out objects, each set in file order."""
     specs = load_object_file(path)
-    ordered = [s for s in specs if s.set == "train"] + [
-        s for s in specs if s.set == "test"
-    ]
+    ordered = [s for group in SETS for s in specs if s.set == group]
     return {spec.name: spec for spec in ordered}
 
 

@@ -1,0 +1,79 @@
+"""A rigid body's free flight, in closed form for its centre of mass and by
+integrating Euler's equations for its rotation: gravity only, no air drag
+(the paper's assumptions, and the plant's).
+
+States use the plant's layout for a free body (13 rows): the quaternion
+(w, x, y, z) of R_WO, p_WO (m), the angular velocity w_WO (rad/s, in W) and
+v_WO (m/s, the velocity of O's origin, in W).
+"""
+
+import numpy as np
+from pydrake.common.eigen_geometry import Quaternion
+from pydrake.math import RotationMatrix
+
+
+def _R(quaternion_wxyz) -> np.ndarray:
+    q = np.asarray(quaternion_wxyz, float)
+    return RotationMatrix(Quaternion(q / np.linalg.norm(q))).matrix()
+
+
+def _quaternion(R) -> np.ndarray:
+    return RotationMatrix(R).ToQuaternion().wxyz()
+
+
+def _hat(w):
+    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]],
+                     [-w[1], w[0], 0.0]])
+
+
+def _rotation_step(R, L_W, I_inv_O, h):
+    """One RK4 step of Ṙ = [w]× R, w = R I⁻¹ Rᵀ L (L constant), then the
+    result projected back onto a rotation."""
+    def f(R):
+        return _hat(R @ I_inv_O @ R.T @ L_W) @ R
+    k1 = f(R)
+    k2 = f(R + 0.5 * h * k1)
+    k3 = f(R + 0.5 * h * k2)
+    k4 = f(R + h * k3)
+    R = R + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+    u, _, vt = np.linalg.svd(R)
+    return u @ vt
+
+
+def propagate(state, times, *, p_OCm, I_CmCm_O, gravity_W,
+              max_step_s: float = 5e-4) -> np.ndarray:
+    """The free flight from `state` at times[0] to every time in `times`
+    (ascending, s): a (13, len(times)) array of states.
+
+    p_OCm: the centre of mass in O (m); I_CmCm_O: the rotational inertia
+    about it, in O (kg·m², 3×3; only its ratios matter); gravity_W (m/s²).
+    """
+    times = np.asarray(times, float)
+    state = np.asarray(state, float)
+    g = np.asarray(gravity_W, float)
+    p_OCm = np.asarray(p_OCm, float)
+    I_O = np.asarray(I_CmCm_O, float)
+    I_inv_O = np.linalg.inv(I_O)
+    R = _R(state[:4])
+    w = state[7:10]
+    p_Cm0 = state[4:7] + R @ p_OCm
+    v_Cm0 = state[10:13] + np.cross(w, R @ p_OCm)
+    L_W = R @ I_O @ R.T @ w
+    out = np.empty((13, len(times)))
+    t = times[0]
+    for k, t_k in enumerate(times):
+        while t < t_k - 1e-12:
+            n = max(1, int(np.ceil((t_k - t) / max_step_s)))
+            h = (t_k - t) / n
+            for _ in range(n):
+                R = _rotation_step(R, L_W, I_inv_O, h)
+            t = t_k
+        dt = t_k - times[0]
+        w = R @ I_inv_O @ R.T @ L_W
+        p_Cm = p_Cm0 + v_Cm0 * dt + 0.5 * g * dt * dt
+        v_Cm = v_Cm0 + g * dt
+        out[:4, k] = _quaternion(R)
+        out[4:7, k] = p_Cm - R @ p_OCm
+        out[7:10, k] = w
+        out[10:13, k] = v_Cm - np.cross(w, R @ p_OCm)
+    return out
