@@ -227,7 +227,7 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
         h_catch, h_down = cell_parameters(cell)
         result = run_episode(scenario, obj, ik=ik, X_WG=plan.X_WG,
                              catch_parameters=(h_catch, h_down),
-                             meshcat=meshcat)
+                             meshcat=meshcat, throw_number=throws + 1)
         throws += 1
         if on_episode is not None:
             on_episode(result)

@@ -29,7 +29,9 @@ several times per step), and the references are the same as if they were
 evaluated at the step's time.
 """
 
+import dataclasses as dc
 import enum
+import math
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -59,6 +61,44 @@ _QGRASP = slice(19, 25)
 _SIZE = 25
 
 
+@dc.dataclass(frozen=True)
+class ThrowPerturbation:
+    """One throw's release noise: the fingers open `release_dt_s` late, and
+    each arm joint's reference gets a smooth velocity pulse that peaks at
+    `joint_dv_rad_per_s` at the release, v(τ) = dv · exp(-((τ - τ_r)/w)²)
+    with w = PULSE_WIDTH_S (its position and acceleration follow)."""
+    release_dt_s: float = 0.0
+    joint_dv_rad_per_s: tuple = (0.0,) * 6
+
+    PULSE_WIDTH_S = 0.04
+
+    @staticmethod
+    def draw(noise, throw_number: int) -> "ThrowPerturbation":
+        """The perturbation of throw `throw_number` under scenario noise
+        `noise` (a ThrowNoise); all zeros without noise."""
+        if (noise.release_time_std_s == 0.0
+                and noise.joint_velocity_std_rad_per_s == 0.0):
+            return ThrowPerturbation()
+        rng = np.random.default_rng([noise.seed, throw_number])
+        return ThrowPerturbation(
+            release_dt_s=float(rng.normal(0.0, noise.release_time_std_s)),
+            joint_dv_rad_per_s=tuple(float(v) for v in rng.normal(
+                0.0, noise.joint_velocity_std_rad_per_s, 6)))
+
+    def is_zero(self) -> bool:
+        return self.release_dt_s == 0.0 and not any(self.joint_dv_rad_per_s)
+
+    def pulse(self, tau, tau_release):
+        """The reference offsets (dq, dv, da) at throw time tau."""
+        w = self.PULSE_WIDTH_S
+        u = (tau - tau_release) / w
+        g = math.exp(-u * u)
+        phi = 0.5 * w * math.sqrt(math.pi) * (
+            math.erf(u) + math.erf(tau_release / w))
+        dv = np.asarray(self.joint_dv_rad_per_s)
+        return phi * dv, g * dv, (-2.0 * u / w * g) * dv
+
+
 def _quintic(tau):
     """Time law s(τ), s'(τ), s''(τ) with zero end velocity and acceleration."""
     tau = min(max(tau, 0.0), 1.0)
@@ -77,9 +117,11 @@ class CatchStateMachine(LeafSystem):
     """
 
     def __init__(self, scenario, ik: ArmIk, hand_open, hand_closed,
-                 finger_speed_rad_per_s: float, park_q=None):
+                 finger_speed_rad_per_s: float, park_q=None,
+                 perturbation: ThrowPerturbation = ThrowPerturbation()):
         """`park_q`, when given, makes this a watching throw: after the
-        release the arm goes to `park_q` and never tries to catch."""
+        release the arm goes to `park_q` and never tries to catch.
+        `perturbation`: this throw's release noise (default none)."""
         LeafSystem.__init__(self)
         self._ik = ik
         self._throw = scenario.throw
@@ -95,7 +137,9 @@ class CatchStateMachine(LeafSystem):
         self._park_q = None if park_q is None else np.asarray(park_q, float)
         t = scenario.throw
         self._t_throw = t.settle_s
-        self._t_release = t.settle_s + t.release_time_s
+        self._noise = None if perturbation.is_zero() else perturbation
+        self._t_release = (t.settle_s + t.release_time_s
+                           + perturbation.release_dt_s)
         self._t_throw_end = t.settle_s + t.knot_times_s[-1]
         knots = np.array(t.knot_q_rad).T
         self._spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(
@@ -142,13 +186,21 @@ class CatchStateMachine(LeafSystem):
         """The arm's (q, v, v̇) reference at time t in state x."""
         if x[_PHASE] == Phase.THROW:
             tau = min(t - self._t_throw, self._throw.knot_times_s[-1])
-            return (self._spline.value(tau).ravel(),
-                    self._spline_v.value(tau).ravel(),
-                    self._spline_a.value(tau).ravel())
+            return self._throw_reference(tau)
         T = x[_T]
         s, ds, dds = _quintic((t - x[_T0]) / T)
         dq = x[_QB] - x[_QA]
         return x[_QA] + s * dq, ds / T * dq, dds / T**2 * dq
+
+    def _throw_reference(self, tau):
+        """The throw's (q, v, v̇) at throw time tau, with its noise pulse."""
+        q = self._spline.value(tau).ravel()
+        v = self._spline_v.value(tau).ravel()
+        a = self._spline_a.value(tau).ravel()
+        if self._noise is not None:
+            dq, dv, da = self._noise.pulse(tau, self._throw.release_time_s)
+            q, v, a = q + dq, v + dv, a + da
+        return q, v, a
 
     def _hand_reference(self, x, t):
         """The fingers' (q, v) reference at time t in state x: they ramp at
@@ -196,7 +248,7 @@ class CatchStateMachine(LeafSystem):
         if phase == Phase.SETTLE and t >= self._t_throw:
             x[_PHASE] = Phase.THROW
         elif phase == Phase.THROW and t >= self._t_throw_end:
-            q_end = self._spline.value(self._throw.knot_times_s[-1]).ravel()
+            q_end = self._throw_reference(self._throw.knot_times_s[-1])[0]
             if self._park_q is not None:
                 q_target = self._park_q
             else:

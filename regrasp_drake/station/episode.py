@@ -56,12 +56,15 @@ class EpisodeResult:
 
 def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
                 X_WG: RigidTransform | None, catch_parameters=None,
-                mlp_features=None, meshcat=None) -> EpisodeResult:
-    """Throws `obj` and, unless X_WG is None (a watching throw), catches it."""
+                mlp_features=None, meshcat=None,
+                throw_number: int = 1) -> EpisodeResult:
+    """Throws `obj` and, unless X_WG is None (a watching throw), catches it.
+    throw_number seeds the release noise, if the scenario has any."""
     t0 = time.perf_counter()
     station = build_station(scenario, obj, ik=ik, X_WG=X_WG,
                             catch_parameters=catch_parameters,
-                            mlp_features=mlp_features, meshcat=meshcat)
+                            mlp_features=mlp_features, meshcat=meshcat,
+                            throw_number=throw_number)
     if meshcat is not None:
         meshcat.StartRecording(set_visualizations_while_recording=False)
     simulator = initialize(station, scenario)

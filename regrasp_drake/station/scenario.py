@@ -38,6 +38,20 @@ class ArmControlConfig:
 
 
 @dc.dataclass
+class ThrowNoise:
+    """Release noise: each throw's perturbation is drawn from a generator
+    seeded with (seed, the throw's number), so a run is reproducible from its
+    seed; zero deviations reproduce the deterministic throw exactly."""
+    # Standard deviation of the moment the fingers open, [s].
+    release_time_std_s: float = 0.0
+    # Standard deviation of each arm joint's velocity offset at the release,
+    # [rad/s] (a smooth pulse on the throw's reference, see
+    # catch_state_machine.ThrowPerturbation).
+    joint_velocity_std_rad_per_s: float = 0.0
+    seed: int = 0
+
+
+@dc.dataclass
 class ThrowConfig:
     # Time the object is left to settle in the closed hand before the swing, [s].
     settle_s: float = 0.3
@@ -61,6 +75,8 @@ class ThrowConfig:
     # On a watching throw the arm parks out of the flight's way: the throw's
     # last knot with joint 1 turned by this much, [rad].
     park_joint1_offset_rad: float = 0.7
+    # Release noise (default none: every throw identical).
+    noise: ThrowNoise = dc.field(default_factory=ThrowNoise)
 
 
 @dc.dataclass
@@ -194,6 +210,13 @@ def validate(s: Scenario) -> Scenario:
     _in_range("throw.hold_closure", t.hold_closure, 0.0, 1.0)
     _in_range("throw.park_joint1_offset_rad", t.park_joint1_offset_rad,
               -math.pi, math.pi, " rad")
+    _in_range("throw.noise.release_time_std_s", t.noise.release_time_std_s,
+              0.0, 0.05, " s")
+    _in_range("throw.noise.joint_velocity_std_rad_per_s",
+              t.noise.joint_velocity_std_rad_per_s, 0.0, 1.0, " rad/s")
+    if not isinstance(t.noise.seed, int) or t.noise.seed < 0:
+        raise field_error("throw.noise.seed", t.noise.seed,
+                          "an integer >= 0")
     n = s.sensors
     _in_range("sensors.period_s", n.period_s, s.time_step_s, 0.05, " s")
     ratio = n.period_s / s.time_step_s

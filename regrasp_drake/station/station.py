@@ -25,7 +25,8 @@ from pydrake.common.value import AbstractValue
 
 from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.station.catch_state_machine import CatchStateMachine
+from regrasp_drake.station.catch_state_machine import (CatchStateMachine,
+                                                       ThrowPerturbation)
 from regrasp_drake.station.grasp_monitor import GraspMonitor
 from regrasp_drake.station.scenario import Scenario
 from regrasp_drake.station.sensors import InfraredSensors, TactileBumper
@@ -54,13 +55,16 @@ class Station:
 
 def build_station(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
                   X_WG: RigidTransform | None, catch_parameters=None,
-                  mlp_features=None, meshcat: Meshcat | None = None) -> Station:
+                  mlp_features=None, meshcat: Meshcat | None = None,
+                  throw_number: int = 1) -> Station:
     """Builds the station for one episode.
 
     X_WG: the palm's grasp pose; None makes a watching throw (no catch).
     catch_parameters: (h_catch, h_down) in m, or None to take them as the
     scenario's `catch.parameter_source` says: its fixed values, or the MLP
     system fed with `mlp_features` (v_catch, h_cm, r_cm, d_obj, v_conv).
+    throw_number: which throw of a run this is; it seeds the release noise
+    when the scenario has any (throw.noise).
     """
     if catch_parameters is None and (
             X_WG is None or scenario.catch.parameter_source == "fixed"):
@@ -138,7 +142,8 @@ def build_station(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
         q_park[0] += scenario.throw.park_joint1_offset_rad
     machine = builder.AddNamedSystem("catch_state_machine", CatchStateMachine(
         scenario, ik, robot.HAND_OPEN, robot.HAND_CLOSED,
-        robot.FINGER_MAX_SPEED, park_q=q_park))
+        robot.FINGER_MAX_SPEED, park_q=q_park,
+        perturbation=ThrowPerturbation.draw(scenario.throw.noise, throw_number)))
     grasp = builder.AddNamedSystem("X_WG", ConstantValueSource(
         AbstractValue.Make(X_WG if X_WG is not None else RigidTransform())))
     builder.Connect(grasp.get_output_port(), machine.GetInputPort("X_WG"))
