@@ -134,6 +134,29 @@ def _load_network(args, scenario):
     return model
 
 
+def _flight_predictor(args):
+    """The flight predictor for --first-throw (default models/
+    flight_predictor.json), or None."""
+    if not getattr(args, "first_throw", False):
+        return None
+    from regrasp_drake.learning.flight_predictor import FlightPredictor
+    from regrasp_drake.paths import MODELS_DIR
+    path = args.flight_model or MODELS_DIR / "flight_predictor.json"
+    try:
+        return FlightPredictor.load(path)
+    except InputError as e:
+        raise InputError(f"--flight-model: {e}") from None
+
+
+def _add_first_throw_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--first-throw", action="store_true",
+                   help="no watching throw: plan the catch from the flight "
+                        "predictor and catch on throw 1")
+    p.add_argument("--flight-model", type=Path, metavar="F",
+                   help="the flight predictor (default "
+                        "models/flight_predictor.json)")
+
+
 def _replay(path):
     """A RunReplay when --html is asked for, else None."""
     if path is None:
@@ -153,6 +176,7 @@ def _cmd_learn(args) -> int:
     result = learn(scenario, obj, model, library_path=args.library,
                    scenario_label=label, object_source=source,
                    max_throws=args.max_throws,
+                   flight_predictor=_flight_predictor(args),
                    meshcat=replay.meshcat if replay else None,
                    on_episode=(lambda r: replay.add_episode(r.sim_time_s))
                    if replay else None)
@@ -237,9 +261,29 @@ def _cmd_table1(args) -> int:
     scenario = load_scenario(args.scenario)
     model = _load_network(args, scenario)
     rows = run_table1(scenario, model, ik=ArmIk(), library_path=args.library,
-                      maps_dir=None if args.no_maps else args.maps_dir)
+                      maps_dir=None if args.no_maps else args.maps_dir,
+                      flight_predictor=_flight_predictor(args),
+                      objects=args.objects)
     print(format_markdown(rows))
     write_outputs(rows, args.json, args.markdown)
+    return 0
+
+
+def _cmd_train_flight(args) -> int:
+    from regrasp_drake.learning.flight_predictor import train_from_dataset
+    from regrasp_drake.paths import MODELS_DIR
+    from regrasp_drake.planning.ik import ArmIk
+    from regrasp_drake.station.scenario import load_scenario
+    from regrasp_drake.world.objects import load_catalogue
+    import torch
+    torch.set_num_threads(1)
+    scenario = load_scenario(args.scenario)
+    data = args.data or MODELS_DIR / "dataset"
+    out = args.out or MODELS_DIR / "flight_predictor.json"
+    held_out = [o for o in load_catalogue().values() if o.set != "train"]
+    report = train_from_dataset(data, scenario, out, ik=ArmIk(),
+                                eval_objects=held_out, progress=sys.stderr)
+    print(json.dumps(report, indent=1))
     return 0
 
 
@@ -306,6 +350,7 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", type=Path, metavar="F", help="write the result")
     p.add_argument("--plot", type=Path, metavar="F",
                    help="PNG of the search (the paper's Fig. 7)")
+    _add_first_throw_args(p)
     p.set_defaults(func=_cmd_learn)
 
     p = sub.add_parser("apply", help="the applying phase: one throw, caught "
@@ -355,7 +400,20 @@ def make_parser() -> argparse.ArgumentParser:
                    "the search marked (JSON lines + PNG; default table1-maps)")
     p.add_argument("--no-maps", action="store_true",
                    help="skip the success maps (150 episodes per object)")
+    p.add_argument("--objects", nargs="+", metavar="NAME",
+                   help="other objects instead of Table 1's (e.g. the "
+                        "holdout-* objects); no paper figures for them")
+    _add_first_throw_args(p)
     p.set_defaults(func=_cmd_table1)
+
+    p = sub.add_parser("train-flight", help="fit the flight predictor (the "
+                       "first-throw mode's) on the data set's flights")
+    _add_scenario_arg(p)
+    p.add_argument("--data", type=Path, metavar="DIR",
+                   help="data set directory (default models/dataset)")
+    p.add_argument("--out", type=Path, metavar="F",
+                   help="the predictor (default models/flight_predictor.json)")
+    p.set_defaults(func=_cmd_train_flight)
     return parser
 
 

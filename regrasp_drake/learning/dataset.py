@@ -78,24 +78,33 @@ def _object_task(args):
     """One object's plan and map (in a worker process); returns its name."""
     scenario_path, name, out_dir, only = args
     import torch
+    from regrasp_drake.learning.flight_predictor import free_time_s
     from regrasp_drake.planning.ik import ArmIk
     from regrasp_drake.station.scenario import load_scenario
+    from regrasp_drake.throw_catch import plan_catch, watch
     from regrasp_drake.world.objects import resolve_object
     torch.set_num_threads(1)
     scenario = load_scenario(scenario_path)
     obj = resolve_object(name=name)
     ik = ArmIk()
     out_dir = Path(out_dir)
+    watched = watch(scenario, obj, ik)
+    # The free-flight state at the end of the throw: the flight predictor's
+    # training data.
+    k = int(np.argmin(np.abs(watched.logs.t - free_time_s(scenario))))
+    free = {"t_s": float(watched.logs.t[k]),
+            "state": watched.logs.object_state[:, k].tolist()}
     try:
-        plan = grid.plan_object(scenario, obj, ik)
+        plan = plan_catch(scenario, obj, ik, watched)
     except InputError as e:  # no reachable catch point: recorded, no map
         _write_json(out_dir / "plans" / f"{name}.json",
-                    {"object": name, "usable": False, "reason": str(e)})
+                    {"object": name, "usable": False, "reason": str(e),
+                     "free_flight": free})
         return name
     features = {"v_catch": float(plan.catch_point.v_catch)} | obj.features()
     _write_json(out_dir / "plans" / f"{name}.json",
                 {"object": name, "usable": True, "features": features,
-                 "plan": plan.as_dict()})
+                 "plan": plan.as_dict(), "free_flight": free})
     grid.run_map(scenario, obj, ik, plan, out_dir / "cells" / f"{name}.jsonl",
                  workers=1, progress=False, only=only)
     return name

@@ -16,6 +16,10 @@ first cell of one grid search (as the paper's Fig. 8 does: its start point
 is a cell of the parameter space). The raw and clamped predictions are
 reported beside the cell.
 
+First-throw mode (the paper's future work, §VII): with a flight predictor,
+there is no watching throw; the offline stage plans from the predicted
+flight, and throw 1 already catches (then the search goes on as usual).
+
 Applying: one throw with the stored grasp pose and parameters.
 """
 
@@ -149,7 +153,7 @@ class LearningResult:
     throws: int         # every throw, the watching throw included
     sim_time_s: float   # simulated time of every throw, [s]
     wall_s: float       # wall time of the whole phase, [s]
-    watched: EpisodeResult
+    watched: EpisodeResult | None  # None in first-throw mode
     plan: CatchPlan
     features: list      # the network's inputs (FEATURE_NAMES order)
     raw_prediction: list    # the network's output (h_catch, h_down), [m]
@@ -164,7 +168,9 @@ class LearningResult:
             "stopped": self.stopped, "throws": self.throws,
             "sim_time_s": round(self.sim_time_s, 4),
             "wall_s": round(self.wall_s, 3),
-            "watch": _episode_dict(self.watched),
+            "watch": (None if self.watched is None
+                      else _episode_dict(self.watched)),
+            "first_throw": self.watched is None,
             "plan": _plan_dict(self.plan),
             "features": dict(zip(FEATURE_NAMES, self.features)),
             "prediction": {"raw": [round(x, 5) for x in self.raw_prediction],
@@ -181,8 +187,12 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
           ik: ArmIk | None = None, library_path=None,
           scenario_label: str = "defaults",
           object_source: str = "catalogue", max_throws: int | None = None,
-          meshcat=None, on_episode=None, progress=sys.stderr) -> LearningResult:
+          meshcat=None, on_episode=None, progress=sys.stderr,
+          flight_predictor=None) -> LearningResult:
     """The learning phase on one object (see the module's docstring).
+
+    flight_predictor: a learning.flight_predictor.FlightPredictor for the
+    first-throw mode (no watching throw), or None.
 
     library_path: where the learned entry is stored when a throw catches
     (None: not stored). max_throws: stop after this many throws, the watch
@@ -190,10 +200,13 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
     meshcat: recorded by every throw; on_episode(result) is called after each
     (e.g. RunReplay.add_episode). progress: a stream that gets one line per
     throw (None: quiet)."""
+    first_throw = flight_predictor is not None
     if max_throws is not None and not (
-            isinstance(max_throws, int) and max_throws >= 2):
+            isinstance(max_throws, int) and max_throws >= 2 - first_throw):
         raise field_error("max_throws", max_throws,
-                          "an integer >= 2 (the watch and one catch attempt)")
+                          "an integer >= 1 (one catch attempt)" if first_throw
+                          else "an integer >= 2 (the watch and one catch "
+                               "attempt)")
     if library_path is not None:
         lib.load_library(library_path)  # a malformed file: refused now
     t0 = time.perf_counter()
@@ -203,14 +216,21 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
         if progress is not None:
             print(f"{obj.name}: {line}", file=progress, flush=True)
 
-    # Throw 1 watches; the offline stage plans the catch and the network
-    # predicts its parameters.
-    watched = watch(scenario, obj, ik, meshcat=meshcat)
-    if on_episode is not None:
-        on_episode(watched)
-    report(f"throw 1 (watch): {watched.outcome}, "
-           f"{watched.sim_time_s:.2f} s simulated, {watched.wall_s:.1f} s wall")
-    plan = plan_catch(scenario, obj, ik, watched)
+    # Throw 1 watches (or, in first-throw mode, the flight is predicted); the
+    # offline stage plans the catch and the network predicts its parameters.
+    if first_throw:
+        watched = None
+        plan = plan_catch(scenario, obj, ik,
+                          flight_predictor.as_watched(obj, scenario))
+        report("no watching throw: the catch is planned from the predicted "
+               "flight")
+    else:
+        watched = watch(scenario, obj, ik, meshcat=meshcat)
+        if on_episode is not None:
+            on_episode(watched)
+        report(f"throw 1 (watch): {watched.outcome}, {watched.sim_time_s:.2f}"
+               f" s simulated, {watched.wall_s:.1f} s wall")
+        plan = plan_catch(scenario, obj, ik, watched)
     features = network_features(obj, plan.catch_point)
     raw, prediction = predict(model, features)
     start = nearest_cell(*prediction)
@@ -219,7 +239,7 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
            f"{raw[0]:.3f} m, h_down {raw[1]:.3f} m -> start cell {start}")
 
     # Throw 2 catches at the predicted cell; the wavefront search goes on.
-    attempts, throws, stopped = [], 1, "exhausted"
+    attempts, throws, stopped = [], 0 if first_throw else 1, "exhausted"
     for cell in wavefront_order(start):
         if max_throws is not None and throws >= max_throws:
             stopped = "max_throws"
@@ -262,7 +282,8 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
     return LearningResult(
         object=obj.name, caught=learned is not None, stopped=stopped,
         throws=throws,
-        sim_time_s=watched.sim_time_s + sum(a.sim_time_s for a in attempts),
+        sim_time_s=(0.0 if watched is None else watched.sim_time_s)
+        + sum(a.sim_time_s for a in attempts),
         wall_s=time.perf_counter() - t0, watched=watched, plan=plan,
         features=features, raw_prediction=raw, prediction=prediction,
         start_cell=start, attempts=attempts, learned=learned)

@@ -17,22 +17,30 @@ PAPER_TABLE1 = [
 
 
 def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
-               map_workers: int = 2, progress=sys.stderr) -> list[dict]:
-    """Runs the learning phase on table1-row1 … row5; returns one row each.
-    With maps_dir: also each object's full success map (resumable JSON
-    lines) and a PNG of it with the network's start cell and the search
-    path."""
+               map_workers: int = 2, progress=sys.stderr,
+               flight_predictor=None, objects=None) -> list[dict]:
+    """Runs the learning phase on table1-row1 … row5 (or on `objects`, names
+    of other catalogue objects); returns one row each. With maps_dir: also
+    each object's full success map (resumable JSON lines) and a PNG of it
+    with the network's start cell and the search path. flight_predictor:
+    the first-throw mode (no watching throw)."""
     from regrasp_drake import grid
     from regrasp_drake.learning.learning_phase import learn
     from regrasp_drake.learning.plots import plot_search
     from regrasp_drake.world.objects import resolve_object
     rows = []
-    for row, obj_id, density, com, time_s, trials in PAPER_TABLE1:
-        obj = resolve_object(name=f"table1-row{row}")
+    paper = PAPER_TABLE1
+    if objects:
+        paper = [(k + 1, None, None, None, None, None)
+                 for k in range(len(objects))]
+    for (row, obj_id, density, com, time_s, trials), name in zip(
+            paper, objects or [f"table1-row{r[0]}" for r in PAPER_TABLE1]):
+        obj = resolve_object(name=name)
         result = learn(scenario, obj, model, ik=ik, library_path=library_path,
-                       progress=progress)
+                       progress=progress, flight_predictor=flight_predictor)
         entry = {
             "row": row, "object": obj.name, "paper_object_id": obj_id,
+            "first_throw": flight_predictor is not None,
             "density": obj.d_obj, "h_cm": obj.h_cm, "r_cm": obj.r_cm,
             "caught": result.caught, "throws": result.throws,
             "sim_time_s": round(result.sim_time_s, 2),
@@ -40,8 +48,9 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
             "start_cell": list(result.start_cell),
             "prediction": [round(x, 3) for x in result.prediction],
             "attempts": [a.as_dict() for a in result.attempts],
-            "paper": {"density": density, "com": list(com),
-                      "time_s": time_s, "trials": trials},
+            "paper": None if obj_id is None else {
+                "density": density, "com": list(com), "time_s": time_s,
+                "trials": trials},
         }
         if maps_dir is not None:
             maps_dir = Path(maps_dir)
@@ -71,9 +80,9 @@ def format_markdown(rows: list[dict]) -> str:
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
-        p = r["paper"]
+        p = r["paper"] or {"trials": "–", "time_s": "–"}
         lines.append(
-            f"| {r['row']} | ({r['paper_object_id']}) {r['object']} "
+            f"| {r['row']} | ({r['paper_object_id'] or '–'}) {r['object']} "
             f"| {r['density']:.0f} | ({r['h_cm']:.3f}, {r['r_cm']:.3f}) "
             f"| {p['trials']} | {r['throws']} | {p['time_s']} "
             f"| {r['sim_time_s']:.1f} | {r['wall_s']:.1f} "
