@@ -1,0 +1,169 @@
+"""Catch rate against release noise, for watch-then-catch and first-throw.
+
+    .venv/bin/python benchmarks/noise_curve.py [--objects table1-row1 …]
+        [--levels 0 1 2 3 4] [--trials 4] [--workers 2]
+        [--library regrasp_library.yaml]
+        [--first-throw-library regrasp_library_first_throw.yaml]
+        [--out benchmarks/noise_curve]
+
+Noise level k perturbs every throw (scenario throw.noise): the release time
+with a standard deviation of k × 2 ms and each arm joint's velocity at the
+release with k × 0.03 rad/s, seeded by (trial, throw number), so every figure
+is reproducible.
+
+Each object's parameters are the ones its learning phase found without
+noise (the regrasp library files that `regrasp-drake table1` and
+`regrasp-drake table1 --first-throw --library …` write). A trial:
+  watch-then-catch: a noisy watching throw, the catch planned from it, then
+      a noisy catching throw (a different perturbation) with those
+      parameters;
+  first-throw: the catch planned from the flight predictor (no watch), then
+      one noisy catching throw.
+Writes <out>.jsonl (one line per trial, as it finishes; a rerun resumes),
+<out>.json (catch rate per mode and level) and <out>.png (the curves).
+"""
+
+import argparse
+import dataclasses as dc
+import json
+import multiprocessing
+import sys
+import time
+from pathlib import Path
+
+RELEASE_STD_PER_LEVEL_S = 0.002
+JOINT_DV_STD_PER_LEVEL = 0.03  # rad/s
+
+
+def _scenario(level, trial):
+    from regrasp_drake.station.scenario import ThrowNoise, load_scenario
+    scenario = load_scenario()
+    noise = ThrowNoise(release_time_std_s=level * RELEASE_STD_PER_LEVEL_S,
+                       joint_velocity_std_rad_per_s=level
+                       * JOINT_DV_STD_PER_LEVEL, seed=trial)
+    return dc.replace(scenario, throw=dc.replace(scenario.throw, noise=noise))
+
+
+def _trial(task):
+    mode, name, level, trial, library = task
+    import torch
+    from regrasp_drake.errors import InputError
+    from regrasp_drake.learning.library import lookup
+    from regrasp_drake.planning.ik import ArmIk
+    from regrasp_drake.station.episode import run_episode
+    from regrasp_drake.throw_catch import plan_catch
+    from regrasp_drake.world.objects import resolve_object
+    torch.set_num_threads(1)
+    scenario = _scenario(level, trial)
+    obj = resolve_object(name=name)
+    ik = ArmIk()
+    entry = lookup(library, name)
+    row = {"mode": mode, "object": name, "level": level, "trial": trial,
+           "h_catch": entry.h_catch, "h_down": entry.h_down}
+    t0 = time.perf_counter()
+    try:
+        if mode == "watch":
+            watched = run_episode(scenario, obj, ik=ik, X_WG=None,
+                                  throw_number=1)
+            X_WG = plan_catch(scenario, obj, ik, watched).X_WG
+        else:
+            X_WG = entry.X_WG
+        result = run_episode(scenario, obj, ik=ik, X_WG=X_WG,
+                             catch_parameters=(entry.h_catch, entry.h_down),
+                             throw_number=2)
+        row["outcome"] = result.outcome
+    except InputError as e:  # the noisy flight gave no reachable catch point
+        row["outcome"] = "no plan"
+        row["message"] = str(e)
+    row["wall_s"] = round(time.perf_counter() - t0, 2)
+    return row
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--objects", nargs="+", default=[
+        f"table1-row{k}" for k in range(1, 6)])
+    parser.add_argument("--levels", nargs="+", type=int, default=[0, 1, 2, 3, 4])
+    parser.add_argument("--trials", type=int, default=4)
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--library", type=Path,
+                        default=Path("regrasp_library.yaml"))
+    parser.add_argument("--first-throw-library", type=Path,
+                        default=Path("regrasp_library_first_throw.yaml"))
+    parser.add_argument("--out", type=Path,
+                        default=Path("benchmarks/noise_curve"))
+    args = parser.parse_args()
+    libraries = {"watch": args.library, "first-throw": args.first_throw_library}
+    for mode, path in libraries.items():
+        if not path.exists():
+            print(f"noise_curve: error: {path}: no such library (run "
+                  f"`regrasp-drake table1{' --first-throw' if mode != 'watch' else ''}"
+                  f" --library {path}` first)", file=sys.stderr)
+            return 2
+    lines = args.out.with_suffix(".jsonl")
+    done = {}
+    if lines.exists():
+        for line in lines.read_text().splitlines():
+            try:
+                row = json.loads(line)
+            except json.JSONDecodeError:
+                continue
+            done[(row["mode"], row["object"], row["level"], row["trial"])] = row
+    tasks = [(mode, name, level, trial, str(libraries[mode]))
+             for mode in libraries for level in args.levels
+             for name in args.objects for trial in range(args.trials)
+             if (mode, name, level, trial) not in done]
+    start = time.perf_counter()
+    ctx = multiprocessing.get_context("fork")
+    with ctx.Pool(args.workers) as pool, lines.open("a") as f:
+        for n, row in enumerate(pool.imap_unordered(_trial, tasks), 1):
+            f.write(json.dumps(row) + "\n")
+            f.flush()
+            done[(row["mode"], row["object"], row["level"], row["trial"])] = row
+            rate = n / (time.perf_counter() - start)
+            print(f"\r{n}/{len(tasks)} trials, {rate * 60:.1f}/min, "
+                  f"{(len(tasks) - n) / rate / 60:.1f} min left   ",
+                  end="", file=sys.stderr, flush=True)
+    print(file=sys.stderr)
+    curves = {}
+    for mode in libraries:
+        curves[mode] = []
+        for level in args.levels:
+            rows = [r for k, r in done.items() if k[0] == mode
+                    and k[2] == level and k[1] in args.objects]
+            caught = sum(r["outcome"] == "caught" for r in rows)
+            curves[mode].append({
+                "level": level,
+                "release_time_std_ms": level * RELEASE_STD_PER_LEVEL_S * 1e3,
+                "joint_velocity_std_rad_per_s": level * JOINT_DV_STD_PER_LEVEL,
+                "trials": len(rows), "caught": caught,
+                "catch_rate": caught / len(rows) if rows else None})
+    summary = {"objects": args.objects, "trials_per_object": args.trials,
+               "curves": curves}
+    args.out.with_suffix(".json").write_text(json.dumps(summary, indent=1) + "\n")
+    print(json.dumps(summary, indent=1))
+    _plot(curves, args.out.with_suffix(".png"))
+    return 0
+
+
+def _plot(curves, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for mode, points in curves.items():
+        ax.plot([p["release_time_std_ms"] for p in points],
+                [p["catch_rate"] for p in points], "o-", label=mode)
+    ax.set_xlabel("release time std (ms); joint velocity std = 15 × that "
+                  "(mrad/s)", fontsize=8)
+    ax.set_ylabel("catch rate")
+    ax.set_ylim(-0.05, 1.05)
+    ax.set_title("Catch rate of the learned parameters under release noise")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
