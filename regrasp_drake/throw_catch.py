@@ -9,15 +9,18 @@ state machine with (h_catch, h_down).
 import dataclasses as dc
 from pathlib import Path
 
+import numpy as np
 import torch
 from pydrake.math import RigidTransform
 
 from regrasp_drake.errors import InputError
-from regrasp_drake.planning.catch_plan import (CatchPoint, find_catch_points,
+from regrasp_drake.planning.catch_plan import (CatchPoint, catch_moments,
+                                               move_torque_ratio,
                                                palm_poses_for)
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.episode import EpisodeResult, run_episode
-from regrasp_drake.station.scenario import Scenario, load_scenario
+from regrasp_drake.station.scenario import (H_CATCH_RANGE, Scenario,
+                                            load_scenario)
 from regrasp_drake.world.objects import ObjectSpec, resolve_object
 
 
@@ -43,30 +46,53 @@ def watch(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
 
 def plan_catch(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
                watched: EpisodeResult) -> CatchPlan:
-    """The offline stage: the catch point and the arm's pose under it."""
-    logs = watched.logs
-    points = find_catch_points(logs.t, logs.object_state,
-                               height_m=scenario.catch.catch_height_m,
-                               tilt_tolerance=scenario.catch.tilt_tolerance,
-                               band_m=scenario.catch.height_band_m,
-                               most_horizontal=True)
+    """The offline stage: the catch point and the arm's pose under it.
+
+    The hand can catch only where it can be in time: the arm leaves the
+    throw's last knot when the throw ends and reaches the grasp pose
+    `catch.move_to_grasp_s` later, if the move stays within the servos'
+    torque limits. Among the moments after that, `catch_moments` ranks where
+    to catch (axis near horizontal, the object landing flat, every h_catch of
+    the parameter space able to trigger after the hand is in place, near the
+    preferred height); the first the arm reaches in time is the plan."""
+    c = scenario.catch
+    t_ready = (scenario.throw.settle_s + scenario.throw.knot_times_s[-1]
+               + c.move_to_grasp_s)
+    q_start = np.asarray(scenario.throw.knot_q_rad[-1], float)
+    points = catch_moments(watched.logs.t, watched.logs.object_state, obj,
+                           height_m=c.catch_height_m, band_m=c.height_band_m,
+                           ready_s=t_ready, fall_m=H_CATCH_RANGE[1],
+                           tilt_tolerance=c.tilt_tolerance)
     if not points:
         raise InputError(
             f"object {obj.name}: no catch point (the watched flight never "
-            f"descends within {scenario.catch.height_band_m} m of "
-            f"catch.catch_height_m = {scenario.catch.catch_height_m} m)")
+            f"descends within {c.height_band_m} m of catch.catch_height_m = "
+            f"{c.catch_height_m} m after the hand can be there, "
+            f"{t_ready:.3f} s)")
     reasons = []
     for point in points:
-        for side, X_WG in zip(("paper", "mirrored"),
-                              palm_poses_for(point, obj.grasp_radius)):
-            result = ik.solve(X_WG, scenario.catch.ik_seed_q_rad)
-            if result.success:
-                return CatchPlan(catch_point=point, X_WG=X_WG,
-                                 q_grasp=list(result.q), side=side)
-            reasons.append(f"at {point.p_WO.round(3).tolist()}, {side} side: "
-                           f"{result.reason()}")
-    raise InputError(f"object {obj.name}: no reachable catch point ("
-                     + "; ".join(reasons) + ")")
+        for side, X_WG in zip(("paper", "mirrored"), palm_poses_for(
+                point, obj.grasp_radius, obj=obj,
+                com_margin_m=c.palm_com_margin_m,
+                max_palm_tilt_rad=float(np.arcsin(c.tilt_tolerance)))):
+            result = ik.solve(X_WG, c.ik_seed_q_rad)
+            where = f"at t = {point.t_s:.3f} s, {side} side"
+            if not result.success:
+                reasons.append(f"{where}: {result.reason()}")
+                continue
+            ratio = move_torque_ratio(ik, q_start, result.q, c.move_to_grasp_s)
+            if ratio > c.max_move_torque_fraction:
+                reasons.append(
+                    f"{where}: the move there needs {ratio:.2f} of a servo's "
+                    f"torque limit (> catch.max_move_torque_fraction = "
+                    f"{c.max_move_torque_fraction})")
+                continue
+            return CatchPlan(catch_point=point, X_WG=X_WG,
+                             q_grasp=list(result.q), side=side)
+    shown = "; ".join(reasons[:4]) + (
+        f"; and {len(reasons) - 4} more" if len(reasons) > 4 else "")
+    raise InputError(f"object {obj.name}: no reachable catch point among "
+                     f"{len(points)} moments ({shown})")
 
 
 def catch_once(*, scenario_path=None, object_name=None, object_file=None,

@@ -232,6 +232,9 @@ class TestInverseKinematics(unittest.TestCase):
         t_h = crossing_time(0.78)
         t, x = tumbling_flight(lambda t: 8.0 * (t - t_h) + np.pi,
                                p0=(3.0, 0.0, 0.8))
+        # On the episode's clock: released 1 s in, so that the object falls
+        # past the catch height after the hand could be in place.
+        t = t + 1.0
         watched = types.SimpleNamespace(
             logs=types.SimpleNamespace(t=t, object_state=x))
         obj = load_catalogue()["table1-row2"]
@@ -268,8 +271,15 @@ class TestThrowCommand(unittest.TestCase):
         plan = report["plan"]
         self.assertEqual(plan["catch_point"]["t_s"], used["t_s"])
         self.assertEqual(len(plan["q_grasp"]), 6)
-        np.testing.assert_allclose(np.array(plan["R_WG"])[:, 2], [0, 0, 1],
-                                   atol=1e-6)  # palm up
+        # The palm faces up, parallel to the object's axis at the catch point
+        # (its normal across the axis, its fingertips horizontal), tilted by
+        # at most the tilt tolerance.
+        R_WG = np.array(plan["R_WG"])
+        axis = np.array(plan["catch_point"]["axis_W"])
+        self.assertAlmostEqual(R_WG[:, 2] @ axis, 0.0, places=4)
+        self.assertAlmostEqual(R_WG[2, 0], 0.0, places=6)
+        self.assertGreaterEqual(R_WG[2, 2], np.sqrt(
+            1.0 - load_scenario().catch.tilt_tolerance ** 2) - 1e-6)
 
 
 if __name__ == "__main__":

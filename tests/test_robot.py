@@ -217,8 +217,20 @@ class TestRobotModel(unittest.TestCase):
             with self.subTest(ir=k):
                 self.assertEqual(ir.body().index(), palm.index())
                 X_SI = self.plant.CalcRelativeTransform(self.context, surface, ir)
-                np.testing.assert_allclose(X_SI.rotation().col(2), [0, 0, 1], atol=1e-12)
                 self.assertAlmostEqual(X_SI.translation()[2], 0.0, places=12)
+                z = X_SI.rotation().col(2)
+                if k <= 3:  # palm sensors: along the palm normal
+                    np.testing.assert_allclose(z, [0, 0, 1], atol=1e-12)
+                    continue
+                # Approach sensors: upward, in the palm's x-z plane, inclined
+                # from their edge toward the palm's centre line, which the
+                # ray crosses between 0.05 and 0.5 m above the palm.
+                p = X_SI.translation()
+                self.assertAlmostEqual(z[1], 0.0, places=12)
+                self.assertGreater(z[2], 0.0)
+                self.assertLess(z[0] * p[0], 0.0)
+                crossing = -p[0] / z[0] * z[2]
+                self.assertTrue(0.05 <= crossing <= 0.5, crossing)
         inspector = self.scene_graph.model_inspector()
         boxes = {
             inspector.GetName(g).split("::")[-1]: g

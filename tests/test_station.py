@@ -124,7 +124,7 @@ class TestCatch(unittest.TestCase):
         save_html(meshcat, cls.html)
         # The hand waits 0.25 m to the side of the flight: a plain miss.
         X_WG = RigidTransform(cls.plan.X_WG.rotation(),
-                              cls.plan.X_WG.translation() + [0.0, 0.25, 0.0])
+                              cls.plan.X_WG.translation() + [0.0, -0.25, 0.0])
         cls.missed = run_episode(cls.scenario, cls.obj, ik=cls.ik, X_WG=X_WG,
                                  catch_parameters=(c.h_catch_m, c.h_down_m))
 

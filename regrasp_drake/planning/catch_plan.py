@@ -3,7 +3,17 @@
 A catch point is a moment of the descent where the object's symmetry axis y_O
 is horizontal (|y_O · z_W| below a tolerance) and the object is at a height the
 hand can wait at. The paper catches "where the object is horizontal,
-otherwise the probability of catching is reduced" (§V).
+otherwise the probability of catching is reduced" (§V). `find_catch_points`
+lists the horizontal passages; `catch_moments` ranks every moment the hand can
+be in place for (the plan's choice, see throw_catch.plan_catch).
+
+The palm waits under the object as it will be at that moment, parallel to its
+axis: just below its lowest point (a piece hanging below the grasp piece lands
+first), under its centre of mass across the axis, and along the axis under
+the grasp piece unless that leaves the centre of mass near the palm's edge.
+The arm must get there in time: `move_torque_ratio` checks that the move to
+the grasp pose stays within the servos' torque limits (a saturated move
+overshoots and arrives late).
 """
 
 import dataclasses as dc
@@ -11,8 +21,13 @@ import dataclasses as dc
 import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.multibody.tree import MultibodyForces
 
-from regrasp_drake.planning.ik import palm_up_pose
+from regrasp_drake.planning.ik import ArmIk, palm_up_pose
+# The state machine's time law of every arm move.
+from regrasp_drake.station.catch_state_machine import _quintic
+from regrasp_drake.world.objects import ObjectSpec
+from regrasp_drake.world.robot import ARM_EFFORT_LIMITS
 
 
 @dc.dataclass
@@ -22,6 +37,7 @@ class CatchPoint:
     y_W: np.ndarray         # the object's symmetry axis, unit, in W
     v_catch: float          # the object's vertical velocity there, [m/s]
     tilt: float             # |y_O · z_W|, [-]
+    R_WO: np.ndarray | None = None  # the object's orientation there, 3×3
 
     def as_dict(self) -> dict:
         return {"t_s": round(self.t_s, 4),
@@ -49,12 +65,13 @@ def find_catch_points(t, object_state, *, height_m: float,
     t = np.asarray(t)
     p = object_state[4:7]
     v = object_state[10:13]
-    y_W = np.array([_axis(object_state[:4, k]) for k in range(len(t))]).T
-    tilt = np.abs(y_W[2])
+    R_WO = [_rotation(object_state[:4, k]) for k in range(len(t))]
+    tilt = np.array([abs(R[2, 1]) for R in R_WO])
     apex = int(np.argmax(p[2]))
-    ok = np.zeros(len(t), bool)
-    ok[apex:] = (np.abs(p[2, apex:] - height_m) <= band_m) & (
-        tilt[apex:] < tilt_tolerance) & (v[2, apex:] < 0)
+    in_band = np.zeros(len(t), bool)
+    in_band[apex:] = (np.abs(p[2, apex:] - height_m) <= band_m) & (
+        v[2, apex:] < 0)
+    ok = in_band & (tilt < tilt_tolerance)
     points = []
     k = 0
     while k < len(t):
@@ -69,49 +86,196 @@ def find_catch_points(t, object_state, *, height_m: float,
         run = np.array(run)
         # The horizontal moment nearest the preferred height.
         best = run[np.argmin(np.abs(p[2, run] - height_m))]
-        points.append(_interpolate(t, p, v, y_W, best, 0.0))
+        points.append(_point(t, p, v, R_WO, best))
     points.sort(key=lambda c: abs(c.p_WO[2] - height_m))
-    if not points and most_horizontal:
-        in_band = np.zeros(len(t), bool)
-        in_band[apex:] = (np.abs(p[2, apex:] - height_m) <= band_m) & (
-            v[2, apex:] < 0)
-        if np.any(in_band):
-            k = int(np.flatnonzero(in_band)[np.argmin(tilt[in_band])])
-            points.append(_interpolate(t, p, v, y_W, k, 0.0))
+    if not points and most_horizontal and np.any(in_band):
+        k = int(np.flatnonzero(in_band)[np.argmin(tilt[in_band])])
+        points.append(_point(t, p, v, R_WO, k))
     return points
 
 
-def _axis(quaternion_wxyz) -> np.ndarray:
+def _rotation(quaternion_wxyz) -> np.ndarray:
     q = np.asarray(quaternion_wxyz, float)
-    R = RotationMatrix(Quaternion(q / np.linalg.norm(q)))
-    return R.matrix()[:, 1]
+    return RotationMatrix(Quaternion(q / np.linalg.norm(q))).matrix()
 
 
-def _interpolate(t, p, v, y_W, k, a) -> CatchPoint:
-    y = (1 - a) * y_W[:, k] + a * y_W[:, k + 1]
-    y /= np.linalg.norm(y)
-    return CatchPoint(
-        t_s=float((1 - a) * t[k] + a * t[k + 1]),
-        p_WO=(1 - a) * p[:, k] + a * p[:, k + 1],
-        y_W=y, v_catch=float((1 - a) * v[2, k] + a * v[2, k + 1]),
-        tilt=float(abs(y[2])))
+def _point(t, p, v, R_WO, k) -> CatchPoint:
+    return CatchPoint(t_s=float(t[k]), p_WO=p[:, k].copy(),
+                      y_W=R_WO[k][:, 1].copy(), v_catch=float(v[2, k]),
+                      tilt=float(abs(R_WO[k][2, 1])), R_WO=R_WO[k])
+
+
+def lowest_points_z(obj: ObjectSpec, object_state) -> np.ndarray:
+    """The height of the object's lowest point at each sample of a logged
+    flight (13-row object states), [m]."""
+    return np.array([
+        lowest_point_z(obj, _rotation(object_state[:4, k]),
+                       object_state[4:7, k])
+        for k in range(object_state.shape[1])])
+
+
+def lowest_point_z(obj: ObjectSpec, R_WO, p_WO) -> float:
+    """The height of the object's lowest surface point, [m], with its frame
+    at (R_WO, p_WO)."""
+    return lowest_point_along(obj, R_WO, p_WO, np.array([0.0, 0.0, 1.0]))
+
+
+def lowest_point_along(obj: ObjectSpec, R_WO, p_WO, n_W) -> float:
+    """min over the object's surface of p_WS · n_W, [m], for a unit vector
+    n_W, with the object's frame at (R_WO, p_WO)."""
+    R_WO = np.asarray(R_WO)
+    n_W = np.asarray(n_W, float)
+    n_O = R_WO.T @ n_W
+    lowest = np.inf
+    for piece in obj.pieces:
+        d = (p_WO + R_WO @ piece.center) @ n_W
+        if piece.shape == "box":
+            d -= 0.5 * np.abs(n_O) @ piece.size
+        elif piece.shape == "sphere":
+            d -= piece.radius
+        else:  # a cylinder or capsule: its axis's direction sets the extent
+            u_n = abs(n_O[piece.axis])
+            d -= u_n * piece.length / 2 + (
+                piece.radius if piece.shape == "capsule"
+                else piece.radius * np.sqrt(max(0.0, 1.0 - u_n**2)))
+        lowest = min(lowest, d)
+    return float(lowest)
+
+
+def catch_moments(t, object_state, obj: ObjectSpec, *, height_m: float,
+                  band_m: float, ready_s: float, fall_m: float,
+                  tilt_tolerance: float,
+                  flat_tolerance_m: float = 0.005) -> list[CatchPoint]:
+    """The moments of a logged flight at which the hand can catch, best first.
+
+    Candidates: the samples of the descent within `band_m` of `height_m`
+    from `ready_s` on (the hand is in place). Order:
+    1. the axis within `tilt_tolerance` of horizontal (|y_O · z_W|); the palm
+       turns to lie parallel to it (`palm_poses_for`);
+    2. the object lands flat: its centre of mass is at most
+       `flat_tolerance_m` higher above the palm's plane (through the object's
+       lowest point along the palm normal) than at the flattest candidate. A
+       lopsided object arriving on its end, its centre of mass high above a
+       small face, tips over in the hand;
+    3. the most fall after `ready_s`, counted up to `fall_m`: every h_catch
+       up to that can trigger after the hand is in place;
+    4. the nearest to `height_m`."""
+    t = np.asarray(t)
+    p = object_state[4:7]
+    v = object_state[10:13]
+    R_WO = [_rotation(object_state[:4, k]) for k in range(len(t))]
+    lowest = lowest_points_z(obj, object_state)
+    apex = int(np.argmax(p[2]))
+    ready = t >= ready_s
+    k_ready = int(np.argmax(ready)) if ready.any() else len(t) - 1
+    candidates = [k for k in range(apex, len(t)) if ready[k] and v[2, k] < 0
+                  and abs(p[2, k] - height_m) <= band_m]
+    if not candidates:
+        return []
+    max_tilt = np.arcsin(min(tilt_tolerance, 1.0))
+    rest, tilted = {}, {}
+    for k in candidates:
+        n_W = palm_frame(R_WO[k][:, 1], max_tilt)[:, 2]
+        p_WCm = p[:, k] + R_WO[k] @ obj.p_OCm
+        rest[k] = p_WCm @ n_W - lowest_point_along(obj, R_WO[k], p[:, k], n_W)
+        tilted[k] = abs(R_WO[k][2, 1]) >= tilt_tolerance
+    flattest = min((rest[k] for k in candidates if not tilted[k]),
+                   default=min(rest.values()))
+    candidates.sort(key=lambda k: (
+        tilted[k], rest[k] > flattest + flat_tolerance_m,
+        -min(lowest[k_ready] - lowest[k], fall_m), abs(p[2, k] - height_m)))
+    return [_point(t, p, v, R_WO, k) for k in candidates]
+
+
+def palm_frame(axis_W, max_tilt_rad: float, x_W=None) -> np.ndarray:
+    """The palm's axes [x y z] (columns) under an object with symmetry axis
+    `axis_W`: +x (the fingertips) horizontal and perpendicular to the axis
+    (`x_W`, or either such direction when None), +y along the axis turned
+    up or down by at most `max_tilt_rad`, +z the palm normal."""
+    axis_W = np.asarray(axis_W, float)
+    if x_W is None:
+        x_W = np.cross([0.0, 0.0, 1.0], axis_W)
+        if np.linalg.norm(x_W) < 1e-12:  # a vertical axis
+            x_W = np.array([1.0, 0.0, 0.0])
+        x_W /= np.linalg.norm(x_W)
+    y_up = np.cross([0.0, 0.0, 1.0], x_W)  # the palm-up pose's y
+    axis = axis_W * (1.0 if axis_W @ y_up >= 0 else -1.0)
+    tilt = np.clip(np.arctan2(axis[2], np.linalg.norm(axis[:2])),
+                   -max_tilt_rad, max_tilt_rad)
+    y_W = np.cos(tilt) * y_up + np.sin(tilt) * np.array([0.0, 0.0, 1.0])
+    return np.column_stack([x_W, y_W, np.cross(x_W, y_W)])
 
 
 def palm_poses_for(catch_point: CatchPoint, grasp_radius_m: float,
                    palm_clearance_m: float = 0.002,
-                   theta_rad: float = 0.3) -> list[RigidTransform]:
-    """The palm's poses under a catch point, preferred first: palm up, centred
-    under the object's origin, the fingertips (palm +x, the paper's z_k)
-    perpendicular to the object's axis; first on the side the paper's θ
-    construction picks (eqs. 2-5), then on the other side (used only when
-    the arm cannot reach the first)."""
+                   theta_rad: float = 0.3, obj: ObjectSpec | None = None,
+                   com_margin_m: float = 0.02,
+                   max_palm_tilt_rad: float = 0.3) -> list[RigidTransform]:
+    """The palm's poses under a catch point, preferred first: the fingertips
+    (palm +x, the paper's z_k) horizontal and perpendicular to the object's
+    axis; first on the side the paper's θ construction picks (eqs. 2-5), then
+    on the other side (used only when the arm cannot reach the first).
+
+    Without `obj` (or without the point's orientation), the palm faces up,
+    centred under the object's origin with the grasp piece (radius
+    `grasp_radius_m`) resting on it. With `obj`, the palm is parallel to the
+    object's axis (turned about the fingertip direction by the axis's tilt,
+    at most `max_palm_tilt_rad`: the paper wants "the hand parallel with the
+    object at the moment of catching"), `palm_clearance_m` below the object
+    along its normal (a piece hanging below the grasp piece meets the palm
+    first); across the axis it is centred under the centre of mass, and along
+    the axis under the grasp piece, shifted only as far as it takes to bring
+    the centre of mass within `com_margin_m` of the palm's centre (the palm
+    is 8.5 cm across: a centre of mass much farther out tips the object over
+    its edge)."""
     y = catch_point.y_W.copy()
     y[2] = 0.0
     y /= np.linalg.norm(y)
     x = fingertip_direction(catch_point.p_WO, y, theta_rad)
-    p_WP = catch_point.p_WO - np.array(
-        [0.0, 0.0, grasp_radius_m + palm_clearance_m])
-    return [palm_up_pose(p_WP, x), palm_up_pose(p_WP, -x)]
+    if obj is None or catch_point.R_WO is None:
+        p_WP = catch_point.p_WO - np.array(
+            [0.0, 0.0, grasp_radius_m + palm_clearance_m])
+        return [palm_up_pose(p_WP, x), palm_up_pose(p_WP, -x)]
+    R_WO = catch_point.R_WO
+    p_OCm_W = R_WO @ obj.p_OCm  # the centre of mass from the origin
+    p_OCm_W[2] = 0.0
+    along = p_OCm_W @ y
+    p_WP = catch_point.p_WO + p_OCm_W - along * y + np.sign(along) * max(
+        0.0, abs(along) - com_margin_m) * y
+    poses = []
+    for x_W in (x, -x):
+        R_WP = palm_frame(catch_point.y_W, max_palm_tilt_rad, x_W)
+        z_W = R_WP[:, 2]
+        # Height: the object's lowest point along the palm normal is
+        # palm_clearance_m above the palm's plane.
+        p = p_WP.copy()
+        p[2] = (lowest_point_along(obj, R_WO, catch_point.p_WO, z_W)
+                - palm_clearance_m - p[:2] @ z_W[:2]) / z_W[2]
+        poses.append(RigidTransform(RotationMatrix(R_WP), p))
+    return poses
+
+
+def move_torque_ratio(ik: ArmIk, q_start, q_end, duration_s: float,
+                      samples: int = 41) -> float:
+    """The largest |τ_i| / effort limit_i the arm needs to follow the state
+    machine's move from q_start to q_end in `duration_s` (a quintic in joint
+    space, at rest at both ends), by inverse dynamics of the arm and hand
+    (the object is in flight). Above 1 the servos saturate: the arm lags,
+    overshoots and reaches the grasp position late."""
+    plant = ik.plant
+    context = plant.CreateDefaultContext()
+    forces = MultibodyForces(plant)
+    q_start = np.asarray(q_start, float)
+    dq = np.asarray(q_end, float) - q_start
+    worst = 0.0
+    for tau in np.linspace(0.0, 1.0, samples):
+        s, ds, dds = _quintic(tau)
+        plant.SetPositions(context, q_start + s * dq)
+        plant.SetVelocities(context, ds / duration_s * dq)
+        torque = plant.CalcInverseDynamics(
+            context, dds / duration_s**2 * dq, forces)
+        worst = max(worst, float(np.max(np.abs(torque) / ARM_EFFORT_LIMITS)))
+    return worst
 
 
 def fingertip_direction(p_WO, y_horizontal, theta_rad) -> np.ndarray:

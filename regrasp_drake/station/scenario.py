@@ -101,14 +101,30 @@ class CatchConfig:
     # nearest first, [m].
     height_band_m: float = 0.3
     # A catch point needs the object's axis this close to horizontal,
-    # |y_O · z_W| < tolerance, [-].
-    tilt_tolerance: float = 0.15
-    # Inverse kinematics of the grasp pose starts from these arm joint angles
-    # (an elbow-down, palm-up posture near the catch region), [rad].
+    # |y_O · z_W| < tolerance, [-]. The palm turns about the fingertip
+    # direction to lie parallel to the axis (paper §V: "the hand parallel with
+    # the object at the moment of catching"): 0.3 is a 17° tilt, well inside
+    # the 42° friction angle of the pads (mu = 0.9).
+    tilt_tolerance: float = 0.3
+    # Along the object's axis the palm is centred under the grasp piece, but
+    # shifted so that the centre of mass is at most this far from the palm's
+    # centre (the palm is 0.085 m wide along the axis), [m].
+    palm_com_margin_m: float = 0.02
+    # Inverse kinematics of the grasp pose starts from these arm joint angles,
+    # [rad]: the throw's last knot, where the move to the grasp pose starts.
+    # Damped least squares converges to the solution nearest its seed, so the
+    # move is the shortest one (an elbow-up posture); from an elbow-down seed
+    # the shoulder and wrist travel up to 1.1 and 1.9 rad, saturate their
+    # servos within move_to_grasp_s and reach the grasp pose 0.1-0.2 s late.
     ik_seed_q_rad: list[float] = dc.field(
-        default_factory=lambda: [0.0, -0.54, -0.24, 0.0, -0.79, 3.1416])
-    # Duration of the arm's move from the release to the grasp position, [s].
+        default_factory=lambda: [0.0, 0.4295, -1.6445, 0.0, 0.4274, 3.1416])
+    # Duration of the arm's move from the end of the throw to the grasp
+    # position, [s].
     move_to_grasp_s: float = 0.35
+    # A grasp pose is used only if the move there needs at most this fraction
+    # of every arm servo's torque limit (inverse dynamics of the move); the
+    # rest is left to the feedback that corrects tracking errors, [-].
+    max_move_torque_fraction: float = 0.9
     # The hand is at the grasp position when its wrist is this close, [m]
     # (paper Fig. 9: 0.001 m).
     grasp_tolerance_m: float = 0.001
@@ -122,9 +138,10 @@ class CatchConfig:
     # Where (h_catch, h_down) come from: "fixed" (the two values below) or
     # "mlp" (the network in `weights`).
     parameter_source: str = "fixed"
-    # Fixed catch parameters, [m].
-    h_catch_m: float = 0.2
-    h_down_m: float = -0.05
+    # Fixed catch parameters, [m]: the middle of table1-row2's catching
+    # region (h_catch >= 0.20 m with h_down <= -0.10 m catches it).
+    h_catch_m: float = 0.28
+    h_down_m: float = -0.12
     # Weights file of the MLP, relative to the repository's models/ directory
     # or absolute.
     weights: str = "catch_mlp.pt"
@@ -230,9 +247,12 @@ def validate(s: Scenario) -> Scenario:
     _in_range("catch.catch_height_m", k.catch_height_m, 0.2, 1.6, " m")
     _in_range("catch.tilt_tolerance", k.tilt_tolerance, 0.0, 1.0)
     _in_range("catch.height_band_m", k.height_band_m, 0.0, 1.0, " m")
+    _in_range("catch.palm_com_margin_m", k.palm_com_margin_m, 0.0, 0.05, " m")
     if len(k.ik_seed_q_rad) != 6:
         raise field_error("catch.ik_seed_q_rad", k.ik_seed_q_rad, "6 joint angles")
     _in_range("catch.move_to_grasp_s", k.move_to_grasp_s, 0.05, 3.0, " s")
+    _in_range("catch.max_move_torque_fraction", k.max_move_torque_fraction,
+              0.05, 1.0)
     _in_range("catch.grasp_tolerance_m", k.grasp_tolerance_m, 1e-5, 0.05, " m")
     _in_range("catch.lower_speed_m_per_s", k.lower_speed_m_per_s, 0.01, 5.0,
               " m/s")
