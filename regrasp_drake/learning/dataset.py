@@ -276,6 +276,18 @@ def load_samples(data_dir: Path) -> list[dict]:
 
 
 def _code_version() -> str:
+    """The git commit (when known) and a hash of the package's and models'
+    source files, which identifies uncommitted code too."""
+    digest = hashlib.sha256()
+    root = Path(__file__).resolve().parents[2]
+    for path in sorted(list((root / "regrasp_drake").rglob("*.py"))
+                       + list((root / "sdf").rglob("*.*"))):
+        digest.update(str(path.relative_to(root)).encode())
+        digest.update(path.read_bytes())
+    return _git_version() + " sources-sha256:" + digest.hexdigest()[:16]
+
+
+def _git_version() -> str:
     try:
         commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO_DIR,
                                 capture_output=True, text=True, check=True)
