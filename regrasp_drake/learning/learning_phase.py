@@ -37,13 +37,13 @@ from regrasp_drake.learning import library as lib
 from regrasp_drake.learning.search import wavefront_order
 from regrasp_drake.planning.catch_plan import (
     CatchPoint,
-    find_catch_points,
+    catch_moments,
     palm_poses_for,
 )
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.episode import EpisodeResult, run_episode
 from regrasp_drake.station.mlp_system import FEATURE_NAMES, CatchMlp, ParameterSpace
-from regrasp_drake.station.scenario import Scenario
+from regrasp_drake.station.scenario import H_CATCH_RANGE, Scenario
 from regrasp_drake.throw_catch import CatchPlan, plan_catch, watch
 from regrasp_drake.world.objects import ObjectSpec
 
@@ -70,37 +70,41 @@ class Observation:
 
 
 def observe(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
-            meshcat=None) -> Observation:
-    """The watching throw and the offline stage, with every catch point.
+            meshcat=None, shown: int = 10) -> Observation:
+    """The watching throw and the offline stage, with the best catch moments.
 
-    The catch point used by default is the first one the arm reaches in the
-    order of `find_catch_points` (the same choice as `plan_catch`): the
-    moments of the descent where the object's axis is horizontal within
-    `catch.tilt_tolerance` (the palm is horizontal, and the paper catches
-    "where the object is horizontal, otherwise the probability of catching
-    is reduced"), nearest first to the preferred catch height
-    `catch.catch_height_m` (0.78 m by default: the palm-up arm reaches under
-    the flights there, and every catalogue object falls from at least
-    0.45 m above it, so that every h_catch of the grid, up to 0.40 m, can
-    trigger before the object arrives). A point the arm cannot reach on
-    either side is skipped; `reach` says why, per side."""
+    The catch point used by default is the first moment, in the order of
+    `catch_plan.catch_moments`, that the arm reaches in time within its
+    torque limits (the same choice as `plan_catch`): only moments after the
+    hand can be in place; first those where the object's axis is within
+    `catch.tilt_tolerance` of horizontal (the paper catches "where the object
+    is horizontal, otherwise the probability of catching is reduced"; the
+    palm tilts to lie parallel to the axis), then those where it lands flat,
+    then those leaving at least 0.40 m of fall after the hand is ready (so
+    that every h_catch of the grid can trigger), then the nearest to the
+    preferred height `catch.catch_height_m`. The first `shown` moments are
+    listed with, per side, whether the arm reaches them and why not."""
     watched = watch(scenario, obj, ik, meshcat=meshcat)
     try:
         plan, error = plan_catch(scenario, obj, ik, watched), ""
     except InputError as e:
         plan, error = None, str(e)
     c = scenario.catch
-    points = find_catch_points(watched.logs.t, watched.logs.object_state,
-                               height_m=c.catch_height_m,
-                               tilt_tolerance=c.tilt_tolerance,
-                               band_m=c.height_band_m)
+    t_ready = (scenario.throw.settle_s + scenario.throw.knot_times_s[-1]
+               + c.move_to_grasp_s)
+    points = catch_moments(watched.logs.t, watched.logs.object_state, obj,
+                           height_m=c.catch_height_m, band_m=c.height_band_m,
+                           ready_s=t_ready, fall_m=H_CATCH_RANGE[1],
+                           tilt_tolerance=c.tilt_tolerance)[:shown]
     if plan is not None and all(p.t_s != plan.catch_point.t_s for p in points):
-        points.append(plan.catch_point)  # a point plan_catch chose otherwise
+        points.append(plan.catch_point)  # chosen further down the order
     reach = []
     for point in points:
         sides = []
-        for side, X_WG in zip(("paper", "mirrored"),
-                              palm_poses_for(point, obj.grasp_radius)):
+        for side, X_WG in zip(("paper", "mirrored"), palm_poses_for(
+                point, obj.grasp_radius, obj=obj,
+                com_margin_m=c.palm_com_margin_m,
+                max_palm_tilt_rad=float(np.arcsin(c.tilt_tolerance)))):
             result = ik.solve(X_WG, c.ik_seed_q_rad)
             sides.append({"side": side, "reachable": result.success,
                           "reason": result.reason()})
