@@ -263,7 +263,7 @@ def _cmd_table1(args) -> int:
     rows = run_table1(scenario, model, ik=ArmIk(), library_path=args.library,
                       maps_dir=None if args.no_maps else args.maps_dir,
                       flight_predictor=_flight_predictor(args),
-                      objects=args.objects)
+                      objects=args.objects, max_throws=args.max_throws)
     print(format_markdown(rows))
     write_outputs(rows, args.json, args.markdown)
     return 0
@@ -400,6 +400,8 @@ def make_parser() -> argparse.ArgumentParser:
                    "the search marked (JSON lines + PNG; default table1-maps)")
     p.add_argument("--no-maps", action="store_true",
                    help="skip the success maps (150 episodes per object)")
+    p.add_argument("--max-throws", type=int, metavar="N",
+                   help="stop each object's learning phase after N throws")
     p.add_argument("--objects", nargs="+", metavar="NAME",
                    help="other objects instead of Table 1's (e.g. the "
                         "holdout-* objects); no paper figures for them")

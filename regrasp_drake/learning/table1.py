@@ -18,7 +18,8 @@ PAPER_TABLE1 = [
 
 def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
                map_workers: int = 2, progress=sys.stderr,
-               flight_predictor=None, objects=None) -> list[dict]:
+               flight_predictor=None, objects=None,
+               max_throws=None) -> list[dict]:
     """Runs the learning phase on table1-row1 … row5 (or on `objects`, names
     of other catalogue objects); returns one row each. With maps_dir: also
     each object's full success map (resumable JSON lines) and a PNG of it
@@ -37,7 +38,8 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
             paper, objects or [f"table1-row{r[0]}" for r in PAPER_TABLE1]):
         obj = resolve_object(name=name)
         result = learn(scenario, obj, model, ik=ik, library_path=library_path,
-                       progress=progress, flight_predictor=flight_predictor)
+                       progress=progress, flight_predictor=flight_predictor,
+                       max_throws=max_throws)
         entry = {
             "row": row, "object": obj.name, "paper_object_id": obj_id,
             "first_throw": flight_predictor is not None,
