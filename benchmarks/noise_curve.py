@@ -93,13 +93,21 @@ def main() -> int:
     parser.add_argument("--out", type=Path,
                         default=Path("benchmarks/noise_curve"))
     args = parser.parse_args()
+    from regrasp_drake.learning.library import load_library
     libraries = {"watch": args.library, "first-throw": args.first_throw_library}
+    learned = {}
     for mode, path in libraries.items():
-        if not path.exists():
-            print(f"noise_curve: error: {path}: no such library (run "
-                  f"`regrasp-drake table1{' --first-throw' if mode != 'watch' else ''}"
-                  f" --library {path}` first)", file=sys.stderr)
-            return 2
+        learned[mode] = set(load_library(path))
+        missing = [n for n in args.objects if n not in learned[mode]]
+        if missing:
+            print(f"noise_curve: {mode}: nothing learned for {missing} in "
+                  f"{path}; those objects are left out of this mode",
+                  file=sys.stderr)
+    if not any(learned.values()):
+        print("noise_curve: error: --library, --first-throw-library: nothing "
+              "learned for any object (run `regrasp-drake table1 --library F` "
+              "first)", file=sys.stderr)
+        return 2
     lines = args.out.with_suffix(".jsonl")
     done = {}
     if lines.exists():
@@ -112,7 +120,8 @@ def main() -> int:
     tasks = [(mode, name, level, trial, str(libraries[mode]))
              for mode in libraries for level in args.levels
              for name in args.objects for trial in range(args.trials)
-             if (mode, name, level, trial) not in done]
+             if name in learned[mode]
+             and (mode, name, level, trial) not in done]
     start = time.perf_counter()
     ctx = multiprocessing.get_context("fork")
     with ctx.Pool(args.workers) as pool, lines.open("a") as f:
@@ -130,7 +139,8 @@ def main() -> int:
         curves[mode] = []
         for level in args.levels:
             rows = [r for k, r in done.items() if k[0] == mode
-                    and k[2] == level and k[1] in args.objects]
+                    and k[2] == level and k[1] in args.objects
+                    and k[1] in learned[mode] and k[3] < args.trials]
             caught = sum(r["outcome"] == "caught" for r in rows)
             curves[mode].append({
                 "level": level,
@@ -152,6 +162,8 @@ def _plot(curves, path):
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(6, 4))
     for mode, points in curves.items():
+        if not any(p["trials"] for p in points):
+            continue
         ax.plot([p["release_time_std_ms"] for p in points],
                 [p["catch_rate"] for p in points], "o-", label=mode)
     ax.set_xlabel("release time std (ms); joint velocity std = 15 × that "

@@ -5,6 +5,8 @@ import json
 import sys
 from pathlib import Path
 
+from regrasp_drake.errors import InputError
+
 # Table 1 of the paper: row, object ID, density (kg/m³), centre of mass
 # (x, y, z in the object frame, m), time (s), number of trials.
 PAPER_TABLE1 = [
@@ -37,9 +39,24 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
     for (row, obj_id, density, com, time_s, trials), name in zip(
             paper, objects or [f"table1-row{r[0]}" for r in PAPER_TABLE1]):
         obj = resolve_object(name=name)
-        result = learn(scenario, obj, model, ik=ik, library_path=library_path,
-                       progress=progress, flight_predictor=flight_predictor,
-                       max_throws=max_throws)
+        try:
+            result = learn(scenario, obj, model, ik=ik,
+                           library_path=library_path, progress=progress,
+                           flight_predictor=flight_predictor,
+                           max_throws=max_throws)
+        except InputError as e:  # no reachable catch point: no throw made
+            rows.append({"row": row, "object": obj.name,
+                         "paper_object_id": obj_id,
+                         "first_throw": flight_predictor is not None,
+                         "density": obj.d_obj, "h_cm": obj.h_cm,
+                         "r_cm": obj.r_cm, "caught": False, "throws": 0,
+                         "sim_time_s": 0.0, "wall_s": 0.0, "error": str(e),
+                         "paper": None if obj_id is None else {
+                             "density": density, "com": list(com),
+                             "time_s": time_s, "trials": trials}})
+            if progress is not None:
+                print(f"{obj.name}: {e}", file=progress, flush=True)
+            continue
         entry = {
             "row": row, "object": obj.name, "paper_object_id": obj_id,
             "first_throw": flight_predictor is not None,
