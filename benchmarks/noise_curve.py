@@ -47,6 +47,7 @@ def _scenario(level, trial):
 def _trial(task):
     mode, name, level, trial, library = task
     import torch
+
     from regrasp_drake.errors import InputError
     from regrasp_drake.learning.library import lookup
     from regrasp_drake.planning.ik import ArmIk

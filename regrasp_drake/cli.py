@@ -237,6 +237,7 @@ def _cmd_dataset(args) -> int:
 
 def _cmd_train(args) -> int:
     import torch
+
     from regrasp_drake.learning.train import train
     from regrasp_drake.paths import MODELS_DIR
     torch.set_num_threads(1)
@@ -253,8 +254,8 @@ def _cmd_train(args) -> int:
 
 def _cmd_table1(args) -> int:
     import torch
-    from regrasp_drake.learning.table1 import (format_markdown, run_table1,
-                                               write_outputs)
+
+    from regrasp_drake.learning.table1 import format_markdown, run_table1, write_outputs
     from regrasp_drake.planning.ik import ArmIk
     from regrasp_drake.station.scenario import load_scenario
     torch.set_num_threads(1)
@@ -270,12 +271,13 @@ def _cmd_table1(args) -> int:
 
 
 def _cmd_train_flight(args) -> int:
+    import torch
+
     from regrasp_drake.learning.flight_predictor import train_from_dataset
     from regrasp_drake.paths import MODELS_DIR
     from regrasp_drake.planning.ik import ArmIk
     from regrasp_drake.station.scenario import load_scenario
     from regrasp_drake.world.objects import load_catalogue
-    import torch
     torch.set_num_threads(1)
     scenario = load_scenario(args.scenario)
     data = args.data or MODELS_DIR / "dataset"

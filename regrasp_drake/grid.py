@@ -100,6 +100,7 @@ def success_map(*, object_name=None, object_file=None, scenario_path=None,
                 out: Path, workers: int = 2, progress=True) -> dict:
     """`regrasp-drake grid`: the success map of one object, resumable."""
     import torch
+
     from regrasp_drake.planning.ik import ArmIk
     from regrasp_drake.station.scenario import load_scenario
     from regrasp_drake.world.objects import resolve_object

@@ -14,13 +14,15 @@ import torch
 from pydrake.math import RigidTransform
 
 from regrasp_drake.errors import InputError
-from regrasp_drake.planning.catch_plan import (CatchPoint, catch_moments,
-                                               move_torque_ratio,
-                                               palm_poses_for)
+from regrasp_drake.planning.catch_plan import (
+    CatchPoint,
+    catch_moments,
+    move_torque_ratio,
+    palm_poses_for,
+)
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.episode import EpisodeResult, run_episode
-from regrasp_drake.station.scenario import (H_CATCH_RANGE, Scenario,
-                                            load_scenario)
+from regrasp_drake.station.scenario import H_CATCH_RANGE, Scenario, load_scenario
 from regrasp_drake.world.objects import ObjectSpec, resolve_object
 
 

@@ -78,6 +78,7 @@ def _object_task(args):
     """One object's plan and map (in a worker process); returns its name."""
     scenario_path, name, out_dir, only = args
     import torch
+
     from regrasp_drake.learning.flight_predictor import free_time_s
     from regrasp_drake.planning.ik import ArmIk
     from regrasp_drake.station.scenario import load_scenario
@@ -210,6 +211,7 @@ def assemble(names, out_dir: Path, *, scenario_path=None, wall_s=None,
     """Writes samples.csv, maps.npz and provenance.json from the per-object
     files (objects in `names` order)."""
     from pydrake.common.yaml import yaml_dump_typed
+
     from regrasp_drake.station.scenario import Scenario, load_scenario
     from regrasp_drake.world.objects import CATALOGUE_PATH
     out_dir = Path(out_dir)

@@ -48,9 +48,9 @@ def central_inertia(obj) -> np.ndarray:
 
 
 def object_inputs(obj) -> np.ndarray:
-    I = central_inertia(obj)
+    I_O = central_inertia(obj)
     return np.array([obj.mass, obj.h_cm, obj.r_cm, obj.d_obj,
-                     I[0, 0], I[1, 1], I[2, 2]], float)
+                     I_O[0, 0], I_O[1, 1], I_O[2, 2]], float)
 
 
 def _expand(x):

@@ -24,8 +24,7 @@ import torch
 from regrasp_drake import grid
 from regrasp_drake.errors import InputError
 from regrasp_drake.learning.dataset import FEATURE_NAMES, load_samples
-from regrasp_drake.station.mlp_system import (CatchMlp, ParameterSpace,
-                                              save_weights)
+from regrasp_drake.station.mlp_system import CatchMlp, ParameterSpace, save_weights
 
 SPLIT = (44, 10, 10)  # the paper's training / validation / test counts
 

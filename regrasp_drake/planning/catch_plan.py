@@ -24,6 +24,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.tree import MultibodyForces
 
 from regrasp_drake.planning.ik import ArmIk, palm_up_pose
+
 # The state machine's time law of every arm move.
 from regrasp_drake.station.catch_state_machine import _quintic
 from regrasp_drake.world.objects import ObjectSpec

@@ -147,7 +147,6 @@ class CatchStateMachine(LeafSystem):
         self._spline_v = self._spline.derivative(1)
         self._spline_a = self._spline.derivative(2)
         self._q_start = knots[:, 0]
-        n_hand = len(self._open)
 
         self._ir = self.DeclareVectorInputPort("ir_levels", 13)
         self._params = self.DeclareVectorInputPort("catch_parameters", 2)

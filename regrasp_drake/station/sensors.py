@@ -10,8 +10,15 @@ import math
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.geometry import (Box, Capsule, Cylinder, GeometryId, QueryObject,
-                              SceneGraphInspector, Sphere)
+from pydrake.geometry import (
+    Box,
+    Capsule,
+    Cylinder,
+    GeometryId,
+    QueryObject,
+    SceneGraphInspector,
+    Sphere,
+)
 from pydrake.multibody.plant import ContactResults, MultibodyPlant
 from pydrake.multibody.tree import Frame
 from pydrake.systems.framework import LeafSystem

@@ -10,23 +10,38 @@ the grasp monitor; loggers; Meshcat when asked.
 import dataclasses as dc
 
 import numpy as np
-from pydrake.geometry import (Box, HalfSpace, Meshcat, MeshcatVisualizer,
-                              MeshcatVisualizerParams, ProximityProperties,
-                              Role, RoleAssign)
+from pydrake.common.value import AbstractValue
+from pydrake.geometry import (
+    Box,
+    HalfSpace,
+    Meshcat,
+    MeshcatVisualizer,
+    MeshcatVisualizerParams,
+    ProximityProperties,
+    RoleAssign,
+)
 from pydrake.math import RigidTransform
-from pydrake.multibody.plant import (AddMultibodyPlant, CoulombFriction,
-                                     MultibodyPlant, MultibodyPlantConfig)
+from pydrake.multibody.plant import (
+    AddMultibodyPlant,
+    CoulombFriction,
+    MultibodyPlant,
+    MultibodyPlantConfig,
+)
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.controllers import InverseDynamicsController
 from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import (ConstantValueSource,
-                                        ConstantVectorSource, LogVectorOutput)
-from pydrake.common.value import AbstractValue
+from pydrake.systems.primitives import (
+    ConstantValueSource,
+    ConstantVectorSource,
+    LogVectorOutput,
+)
 
 from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.station.catch_state_machine import (CatchStateMachine,
-                                                       ThrowPerturbation)
+from regrasp_drake.station.catch_state_machine import (
+    CatchStateMachine,
+    ThrowPerturbation,
+)
 from regrasp_drake.station.grasp_monitor import GraspMonitor
 from regrasp_drake.station.scenario import Scenario
 from regrasp_drake.station.sensors import InfraredSensors, TactileBumper
