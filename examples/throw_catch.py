@@ -1,8 +1,12 @@
-"""Throw a Table 1 object, watch its flight, and catch it; save the replay.
+"""Throw a Table 1 object, watch its flight, and catch it with the shipped
+network's parameters; save the replay.
 
     .venv/bin/python examples/throw_catch.py [--object table1-row2]
 
-Writes throw_catch.html (the Meshcat replay, self-contained) and
+Throw 1 watches; the offline stage plans the catch; the trained network in
+models/ predicts (h_catch, h_down) from (v_catch, h_cm, r_cm, d_obj,
+v_conv), quantized to its grid cell; throw 2 catches. Writes
+throw_catch.html (the Meshcat replay of throw 2, self-contained) and
 throw_catch.png (the sensors over time), and prints the outcome.
 """
 
@@ -11,9 +15,20 @@ import json
 import sys
 from pathlib import Path
 
+import torch
+
 from regrasp_drake.errors import InputError
+from regrasp_drake.grid import cell_parameters, nearest_cell
+from regrasp_drake.learning.learning_phase import network_features, predict
+from regrasp_drake.paths import MODELS_DIR
+from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.plots import plot_episode
+from regrasp_drake.station.episode import run_episode
+from regrasp_drake.station.mlp_system import load_weights
+from regrasp_drake.station.replay import make_meshcat, save_html
 from regrasp_drake.station.scenario import load_scenario
-from regrasp_drake.throw_catch import catch_once
+from regrasp_drake.throw_catch import plan_catch, watch
+from regrasp_drake.world.objects import resolve_object
 
 
 def main() -> int:
@@ -21,16 +36,27 @@ def main() -> int:
     parser.add_argument("--object", default="table1-row2")
     parser.add_argument("--out", type=Path, default=Path("throw_catch.html"))
     args = parser.parse_args()
-    defaults = load_scenario().catch
+    torch.set_num_threads(1)
     try:
-        result, plan = catch_once(
-            object_name=args.object, h_catch=defaults.h_catch_m,
-            h_down=defaults.h_down_m, html=args.out,
-            plot=args.out.with_suffix(".png"))
+        scenario = load_scenario()
+        obj = resolve_object(name=args.object)
+        model, _ = load_weights(MODELS_DIR / scenario.catch.weights)
+        ik = ArmIk()
+        plan = plan_catch(scenario, obj, ik, watch(scenario, obj, ik))
+        raw, _ = predict(model, network_features(obj, plan.catch_point))
+        h_catch, h_down = cell_parameters(nearest_cell(*raw))
     except InputError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    print(json.dumps(result.summary() | {"plan": plan.as_dict()}, indent=1))
+    meshcat = make_meshcat()
+    result = run_episode(scenario, obj, ik=ik, X_WG=plan.X_WG,
+                         catch_parameters=(h_catch, h_down), meshcat=meshcat,
+                         throw_number=2)
+    save_html(meshcat, args.out)
+    plot_episode(result, args.out.with_suffix(".png"))
+    print(json.dumps(result.summary() | {
+        "network_output": [round(x, 4) for x in raw],
+        "plan": plan.as_dict()}, indent=1))
     print(f"replay: {args.out}  sensors: {args.out.with_suffix('.png')}")
     return 0
 

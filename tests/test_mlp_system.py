@@ -169,5 +169,25 @@ class MlpSystemTest(unittest.TestCase):
         self.assertGreater(outside, 0)
 
 
+
+class ShippedWeightsTest(unittest.TestCase):
+    def test_shipped_network_predicts_inside_the_parameter_space(self):
+        import csv
+
+        from regrasp_drake.learning.learning_phase import predict
+        from regrasp_drake.paths import MODELS_DIR
+        model, metadata = load_weights(MODELS_DIR / "catch_mlp.pt")
+        self.assertEqual(metadata["hidden"], 13)
+        with (MODELS_DIR / "dataset" / "samples.csv").open() as f:
+            rows = list(csv.DictReader(f))
+        self.assertGreaterEqual(len(rows), 40)
+        for row in rows:
+            features = [float(row[k]) for k in
+                        ("v_catch", "h_cm", "r_cm", "d_obj", "v_conv")]
+            _, (h_catch, h_down) = predict(model, features)
+            self.assertTrue(0.0 <= h_catch <= 0.40, row["object"])
+            self.assertTrue(-0.14 <= h_down <= 0.0, row["object"])
+
+
 if __name__ == "__main__":
     unittest.main()
