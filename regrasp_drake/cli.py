@@ -259,6 +259,11 @@ def _cmd_table1(args) -> int:
     from regrasp_drake.planning.ik import ArmIk
     from regrasp_drake.station.scenario import load_scenario
     torch.set_num_threads(1)
+    least = 1 if args.first_throw else 2
+    if args.max_throws is not None and args.max_throws < least:
+        raise InputError(f"--max-throws: got {args.max_throws}, expected an "
+                         f"integer >= {least} (the watch, if any, and one "
+                         "catch attempt)")
     scenario = load_scenario(args.scenario)
     model = _load_network(args, scenario)
     rows = run_table1(scenario, model, ik=ArmIk(), library_path=args.library,

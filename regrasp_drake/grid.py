@@ -86,7 +86,7 @@ def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
             os.fsync(f.fileno())
             done[todo[i]] = row
             if progress:
-                _progress(len(done) - (len(wanted) - len(todo)), len(todo),
+                print_progress(len(done) - (len(wanted) - len(todo)), len(todo),
                           start, obj.name)
         run_cells(scenario, obj, ik=ik, X_WG=plan.X_WG,
                   parameters=[cell_parameters(c) for c in todo],
@@ -113,12 +113,12 @@ def success_map(*, object_name=None, object_file=None, scenario_path=None,
                    progress=progress)
 
 
-def _progress(n, total, start, label=""):
+def print_progress(n, total, start, label="", unit="cells"):
     elapsed = time.perf_counter() - start
     rate = n / elapsed if elapsed > 0 else 0.0
     left = (total - n) / rate if rate > 0 else float("inf")
     bar = "#" * int(30 * n / total)
-    print(f"\r{label} [{bar:<30}] {n}/{total} cells, {rate:.2f} cells/s, "
+    print(f"\r{label} [{bar:<30}] {n}/{total} {unit}, {rate:.2f} {unit}/s, "
           f"{left:.0f} s left", end="", file=sys.stderr, flush=True)
 
 

@@ -151,7 +151,7 @@ def generate(names: list[str], out_dir: Path, *, workers: int = 1,
         runner = _run_ray if backend == "ray" else _run_processes
         for k, name in enumerate(runner(tasks, workers), 1):
             if progress:
-                _progress(k, len(tasks), start, name)
+                grid.print_progress(k, len(tasks), start, name, unit="objects")
         if progress:
             print(file=sys.stderr)
     wall_s = time.perf_counter() - start
@@ -183,16 +183,6 @@ def _run_ray(tasks, workers):
     while pending:
         ready, pending = ray.wait(pending, num_returns=1)
         yield ray.get(ready[0])
-
-
-def _progress(n, total, start, name):
-    elapsed = time.perf_counter() - start
-    rate = n / elapsed if elapsed > 0 else 0.0
-    left = (total - n) / rate if rate > 0 else float("inf")
-    bar = "#" * int(30 * n / total)
-    print(f"\r[{bar:<30}] {n}/{total} objects ({name}), "
-          f"{rate * 60:.1f} objects/min, {left / 60:.1f} min left   ",
-          end="", file=sys.stderr, flush=True)
 
 
 # ---- assembly ----------------------------------------------------------------

@@ -49,20 +49,14 @@ class CatchPoint:
 
 def find_catch_points(t, object_state, *, height_m: float,
                       tilt_tolerance: float = 0.1,
-                      band_m: float = 0.08,
-                      most_horizontal: bool = False) -> list[CatchPoint]:
+                      band_m: float = 0.08) -> list[CatchPoint]:
     """Catch points of a logged flight (13-row object states: wxyz quaternion,
     p_WO, w_WO, v_WO), best first.
 
     In the descent, within `band_m` of `height_m`, the moments where the
     object's axis is horizontal: each horizontal passage (a run of samples
     with |y_O · z_W| < tilt_tolerance) gives its sample nearest `height_m`;
-    the points are ordered by their distance to `height_m`.
-
-    `most_horizontal`: when the axis is never horizontal in the band, the
-    band's most horizontal moment of the descent is the one point returned
-    (its `tilt` says how far from horizontal; the paper: away from
-    horizontal "the probability of catching is reduced")."""
+    the points are ordered by their distance to `height_m`."""
     t = np.asarray(t)
     p = object_state[4:7]
     v = object_state[10:13]
@@ -89,9 +83,6 @@ def find_catch_points(t, object_state, *, height_m: float,
         best = run[np.argmin(np.abs(p[2, run] - height_m))]
         points.append(_point(t, p, v, R_WO, best))
     points.sort(key=lambda c: abs(c.p_WO[2] - height_m))
-    if not points and most_horizontal and np.any(in_band):
-        k = int(np.flatnonzero(in_band)[np.argmin(tilt[in_band])])
-        points.append(_point(t, p, v, R_WO, k))
     return points
 
 
