@@ -229,7 +229,8 @@ def _cmd_dataset(args) -> int:
                              "object (see `regrasp-drake objects`)")
     out = args.out or MODELS_DIR / "dataset"
     provenance = generate(names, out, workers=args.workers,
-                          backend=args.backend, scenario_path=args.scenario)
+                          backend=args.backend, scenario_path=args.scenario,
+                          catch_points=args.catch_points)
     print(json.dumps({k: v for k, v in provenance.items() if k != "scenario"},
                      indent=1))
     return 0
@@ -379,6 +380,9 @@ def make_parser() -> argparse.ArgumentParser:
                    metavar="N", help="parallel objects (default: all cores)")
     p.add_argument("--backend", choices=("process", "ray"), default="process",
                    help="local processes, or Ray (RAY_ADDRESS, else local)")
+    p.add_argument("--catch-points", type=int, default=2, metavar="K",
+                   help="catch points per object, each with its own map and "
+                        "label (default 2)")
     p.add_argument("--out", type=Path, metavar="DIR",
                    help="output directory (default models/dataset)")
     p.set_defaults(func=_cmd_dataset)

@@ -57,6 +57,15 @@ def plan_catch(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     to catch (axis near horizontal, the object landing flat, every h_catch of
     the parameter space able to trigger after the hand is in place, near the
     preferred height); the first the arm reaches in time is the plan."""
+    return plan_catches(scenario, obj, ik, watched, count=1)[0]
+
+
+def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
+                 watched: EpisodeResult, *, count: int,
+                 min_separation_s: float = 0.0) -> list[CatchPlan]:
+    """Up to `count` plans, best first (see `plan_catch`), at moments at
+    least `min_separation_s` apart. Raises InputError when none is
+    reachable."""
     c = scenario.catch
     t_ready = (scenario.throw.settle_s + scenario.throw.knot_times_s[-1]
                + c.move_to_grasp_s)
@@ -71,8 +80,11 @@ def plan_catch(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
             f"descends within {c.height_band_m} m of catch.catch_height_m = "
             f"{c.catch_height_m} m after the hand can be there, "
             f"{t_ready:.3f} s)")
-    reasons = []
+    reasons, plans = [], []
     for point in points:
+        if any(abs(point.t_s - p.catch_point.t_s) < max(min_separation_s, 1e-9)
+               for p in plans):
+            continue
         for side, X_WG in zip(("paper", "mirrored"), palm_poses_for(
                 point, obj.grasp_radius, obj=obj,
                 com_margin_m=c.palm_com_margin_m,
@@ -89,8 +101,13 @@ def plan_catch(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
                     f"torque limit (> catch.max_move_torque_fraction = "
                     f"{c.max_move_torque_fraction})")
                 continue
-            return CatchPlan(catch_point=point, X_WG=X_WG,
-                             q_grasp=list(result.q), side=side)
+            plans.append(CatchPlan(catch_point=point, X_WG=X_WG,
+                                   q_grasp=list(result.q), side=side))
+            break
+        if len(plans) == count:
+            break
+    if plans:
+        return plans
     shown = "; ".join(reasons[:4]) + (
         f"; and {len(reasons) - 4} more" if len(reasons) > 4 else "")
     raise InputError(f"object {obj.name}: no reachable catch point among "

@@ -21,7 +21,7 @@ from regrasp_drake.planning.catch_plan import (
 )
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.scenario import load_scenario
-from regrasp_drake.throw_catch import plan_catch
+from regrasp_drake.throw_catch import plan_catch, plan_catches
 from regrasp_drake.world import robot
 from regrasp_drake.world.objects import load_catalogue
 
@@ -245,6 +245,24 @@ class TestInverseKinematics(unittest.TestCase):
         self.assertIn("paper side", message)
         self.assertIn("mirrored side", message)
         self.assertEqual(len(message.splitlines()), 1)
+
+    def test_several_plans_are_distinct_moments_best_first(self):
+        """plan_catches: the first plan is plan_catch's; the others are
+        other moments of the same flight, at least the separation apart."""
+        t_h = crossing_time(0.78)
+        t, x = tumbling_flight(lambda t: 3.0 * (t - t_h) + np.pi)
+        watched = types.SimpleNamespace(
+            logs=types.SimpleNamespace(t=t + 1.0, object_state=x))
+        obj = load_catalogue()["table1-row2"]
+        plans = plan_catches(self.scenario, obj, self.ik, watched, count=3,
+                             min_separation_s=0.03)
+        self.assertEqual(len(plans), 3)
+        first = plan_catch(self.scenario, obj, self.ik, watched)
+        self.assertEqual(plans[0].catch_point.t_s, first.catch_point.t_s)
+        times = [p.catch_point.t_s for p in plans]
+        for i in range(3):
+            for j in range(i + 1, 3):
+                self.assertGreaterEqual(abs(times[i] - times[j]), 0.03 - 1e-9)
 
 
 class TestThrowCommand(unittest.TestCase):

@@ -1,10 +1,13 @@
 """The training data: each training object's success map and its label.
 
-For every object: the watching throw and the offline stage (the catch point
-and its v_catch), then one catch episode per cell of the 150-cell parameter
-space (the success map; cells share the simulated throw up to their trigger,
-see station/branching.py). The label of an object is the catching cell most
-robust to error:
+For every object and each of its first `catch_points` catch points (the
+ranked moments of `throw_catch.plan_catches`, at least
+CATCH_POINT_SEPARATION_S apart): the watching throw and the offline stage
+(the catch point and its v_catch), then one catch episode per cell of the
+150-cell parameter space (the success map; cells share the simulated throw
+up to their trigger, see station/branching.py). An entry is named after its
+object, `<object>` for the first catch point and `<object>@k` for the k-th.
+The label of an entry is the catching cell most robust to error:
 
     robustness(c) = the Chebyshev distance (in cells) from c to the nearest
                     cell that does not catch (cells beyond the grid's edge
@@ -14,15 +17,15 @@ robust to error:
             nearest (Euclidean, in cells) to the mean of the tied cells, then
             to the lowest (h_catch index, h_down index).
 
-An object none of whose cells catches has no label and is left out of the
+An entry none of whose cells catches has no label and is left out of the
 training samples (the data set says so).
 
 Files, under the output directory:
-    cells/<object>.jsonl   one line per finished cell, appended and flushed
+    cells/<entry>.jsonl    one line per finished cell, appended and flushed
                            as it finishes (a killed run resumes from these);
-    plans/<object>.json    the object's features, catch point and v_catch;
-    samples.csv            one row per labelled object: features and label;
-    maps.npz               objects × 10 × 15 outcomes (1 caught, 0 not);
+    plans/<entry>.json     the features, catch point and v_catch;
+    samples.csv            one row per labelled entry: features and label;
+    maps.npz               entries × 10 × 15 outcomes (1 caught, 0 not);
     provenance.json        scenario, catalogue hash, code version, timing.
 """
 
@@ -43,6 +46,10 @@ from regrasp_drake.errors import InputError
 from regrasp_drake.paths import REPO_DIR
 
 FEATURE_NAMES = ("v_catch", "h_cm", "r_cm", "d_obj", "v_conv")
+# Catch points of one object are at least this far apart in time (s): the
+# object falls some 10 cm and turns some 0.2 rad between them, so the hand
+# meets it at another speed and attitude.
+CATCH_POINT_SEPARATION_S = 0.03
 SHAPE = (len(grid.H_CATCH_VALUES), len(grid.H_DOWN_VALUES))
 
 
@@ -74,15 +81,28 @@ def label_cell(caught: np.ndarray) -> tuple[int, int] | None:
 
 
 # ---- generation --------------------------------------------------------------
+def entry_names(names, catch_points: int) -> list[str]:
+    """The data set's entries: each object's catch points 1..catch_points."""
+    return [n if k == 1 else f"{n}@{k}" for n in names
+            for k in range(1, catch_points + 1)]
+
+
+def object_of(entry: str) -> str:
+    """The object an entry belongs to."""
+    return entry.split("@")[0]
+
+
 def _object_task(args):
-    """One object's plan and map (in a worker process); returns its name."""
-    scenario_path, name, out_dir, only = args
+    """One entry's plan and map (in a worker process); returns its name."""
+    scenario_path, entry, out_dir, only = args
+    name, _, point = entry.partition("@")
+    point = int(point or 1)
     import torch
 
     from regrasp_drake.learning.flight_predictor import free_time_s
     from regrasp_drake.planning.ik import ArmIk
     from regrasp_drake.station.scenario import load_scenario
-    from regrasp_drake.throw_catch import plan_catch, watch
+    from regrasp_drake.throw_catch import plan_catches, watch
     from regrasp_drake.world.objects import resolve_object
     torch.set_num_threads(1)
     scenario = load_scenario(scenario_path)
@@ -96,19 +116,26 @@ def _object_task(args):
     free = {"t_s": float(watched.logs.t[k]),
             "state": watched.logs.object_state[:, k].tolist()}
     try:
-        plan = plan_catch(scenario, obj, ik, watched)
+        plans = plan_catches(scenario, obj, ik, watched, count=point,
+                             min_separation_s=CATCH_POINT_SEPARATION_S)
+        if len(plans) < point:
+            raise InputError(f"object {name}: {len(plans)} reachable catch "
+                             f"point(s) at least {CATCH_POINT_SEPARATION_S} s "
+                             f"apart, no catch point {point}")
     except InputError as e:  # no reachable catch point: recorded, no map
-        _write_json(out_dir / "plans" / f"{name}.json",
+        _write_json(out_dir / "plans" / f"{entry}.json",
                     {"object": name, "usable": False, "reason": str(e),
                      "free_flight": free})
-        return name
+        return entry
+    plan = plans[point - 1]
     features = {"v_catch": float(plan.catch_point.v_catch)} | obj.features()
-    _write_json(out_dir / "plans" / f"{name}.json",
-                {"object": name, "usable": True, "features": features,
-                 "plan": plan.as_dict(), "free_flight": free})
-    grid.run_map(scenario, obj, ik, plan, out_dir / "cells" / f"{name}.jsonl",
+    _write_json(out_dir / "plans" / f"{entry}.json",
+                {"object": name, "catch_point": point, "usable": True,
+                 "features": features, "plan": plan.as_dict(),
+                 "free_flight": free})
+    grid.run_map(scenario, obj, ik, plan, out_dir / "cells" / f"{entry}.jsonl",
                  workers=1, progress=False, only=only)
-    return name
+    return entry
 
 
 def _write_json(path: Path, data) -> None:
@@ -132,15 +159,18 @@ def _object_done(out_dir: Path, name: str, only) -> bool:
 
 def generate(names: list[str], out_dir: Path, *, workers: int = 1,
              backend: str = "process", scenario_path=None,
-             progress: bool = True, only=None) -> dict:
-    """Computes every object's plan and map not yet in out_dir, then writes
-    samples.csv, maps.npz and provenance.json. Returns the provenance.
-    `only`: a subset of the cells (a coarse data set; the cells left out
-    count as not catching)."""
+             progress: bool = True, only=None, catch_points: int = 1) -> dict:
+    """Computes every entry's plan and map not yet in out_dir (the objects'
+    first `catch_points` catch points), then writes samples.csv, maps.npz
+    and provenance.json. Returns the provenance. `only`: a subset of the
+    cells (a coarse data set; the cells left out count as not catching)."""
     if backend not in ("process", "ray"):
         raise InputError(f"--backend: got {backend!r}, expected process or ray")
     if workers < 1:
         raise InputError(f"--workers: got {workers}, expected >= 1")
+    if not 1 <= catch_points <= 5:
+        raise InputError(f"--catch-points: got {catch_points}, expected 1 to 5")
+    names = entry_names(names, catch_points)
     out_dir = Path(out_dir)
     (out_dir / "cells").mkdir(parents=True, exist_ok=True)
     todo = [n for n in names if not _object_done(out_dir, n, only)]
@@ -151,12 +181,13 @@ def generate(names: list[str], out_dir: Path, *, workers: int = 1,
         runner = _run_ray if backend == "ray" else _run_processes
         for k, name in enumerate(runner(tasks, workers), 1):
             if progress:
-                grid.print_progress(k, len(tasks), start, name, unit="objects")
+                grid.print_progress(k, len(tasks), start, name, unit="entries")
         if progress:
             print(file=sys.stderr)
     wall_s = time.perf_counter() - start
     return assemble(names, out_dir, scenario_path=scenario_path,
-                    wall_s=wall_s, workers=workers, backend=backend)
+                    wall_s=wall_s, workers=workers, backend=backend,
+                    catch_points=catch_points)
 
 
 def _run_processes(tasks, workers):
@@ -197,9 +228,9 @@ def load_map(out_dir: Path, name: str) -> np.ndarray:
 
 
 def assemble(names, out_dir: Path, *, scenario_path=None, wall_s=None,
-             workers=None, backend=None) -> dict:
-    """Writes samples.csv, maps.npz and provenance.json from the per-object
-    files (objects in `names` order)."""
+             workers=None, backend=None, catch_points=1) -> dict:
+    """Writes samples.csv, maps.npz and provenance.json from the per-entry
+    files (entries in `names` order)."""
     from pydrake.common.yaml import yaml_dump_typed
 
     from regrasp_drake.station.scenario import Scenario, load_scenario
@@ -235,7 +266,9 @@ def assemble(names, out_dir: Path, *, scenario_path=None, wall_s=None,
         writer.writeheader()
         writer.writerows(samples)
     provenance = {
-        "objects": len(names), "maps": len(maps), "samples": len(samples),
+        "objects": len(dict.fromkeys(map(object_of, names))),
+        "catch_points_per_object": catch_points,
+        "entries": len(names), "maps": len(maps), "samples": len(samples),
         "unusable": unusable, "unlabelled": unlabelled,
         "label_rule": "most robust catching cell (Chebyshev distance to the "
                       "nearest failed cell); ties: nearest the tied cells' "

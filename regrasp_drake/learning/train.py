@@ -23,26 +23,38 @@ import torch
 
 from regrasp_drake import grid
 from regrasp_drake.errors import InputError
-from regrasp_drake.learning.dataset import FEATURE_NAMES, load_samples
+from regrasp_drake.learning.dataset import FEATURE_NAMES, load_samples, object_of
 from regrasp_drake.station.mlp_system import CatchMlp, ParameterSpace, save_weights
 
 SPLIT = (44, 10, 10)  # the paper's training / validation / test counts
 
 
-def split_indices(n: int, seed: int = 0) -> tuple[list, list, list]:
+def split_indices(n: int, seed: int = 0,
+                  groups: list | None = None) -> tuple[list, list, list]:
     """A random split of n samples in the paper's 44 / 10 / 10 proportions.
-    Fewer than 3 samples (a smoke-test data set) cannot be split: all three
-    splits are then all the samples."""
+    `groups` (one key per sample, e.g. its object): samples of one group go
+    to the same split, so that no object's other catch point is tested on
+    after training on one. Fewer than 3 groups (a smoke-test data set)
+    cannot be split: all three splits are then all the samples."""
     if n < 1:
         raise InputError("data set: no samples (no object caught in any cell)")
-    if n < 3:
+    groups = list(range(n)) if groups is None else list(groups)
+    keys = list(dict.fromkeys(groups))
+    if len(keys) < 3:
         return list(range(n)), list(range(n)), list(range(n))
-    order = np.random.default_rng(seed).permutation(n).tolist()
+    order = [keys[i] for i in np.random.default_rng(seed).permutation(len(keys))]
     n_val = max(1, round(n * SPLIT[1] / sum(SPLIT)))
     n_test = max(1, round(n * SPLIT[2] / sum(SPLIT)))
-    n_train = n - n_val - n_test
-    return (sorted(order[:n_train]), sorted(order[n_train:n_train + n_val]),
-            sorted(order[n_train + n_val:]))
+    members = {k: [i for i, g in enumerate(groups) if g == k] for k in keys}
+    test, val, train = [], [], []
+    for k in order:  # test first, then validation, the rest training
+        if len(test) < n_test:
+            test += members[k]
+        elif len(val) < n_val:
+            val += members[k]
+        else:
+            train += members[k]
+    return sorted(train), sorted(val), sorted(test)
 
 
 def _arrays(samples):
@@ -58,7 +70,8 @@ def train(data_dir: Path, out: Path, *, seed: int = 0, epochs: int = 3000,
     weights as <out>.json)."""
     data_dir, out = Path(data_dir), Path(out)
     samples = load_samples(data_dir)
-    train_i, val_i, test_i = split_indices(len(samples), seed)
+    train_i, val_i, test_i = split_indices(
+        len(samples), seed, groups=[object_of(s["object"]) for s in samples])
     x, y = _arrays(samples)
     torch.manual_seed(seed)
     model = CatchMlp()

@@ -53,6 +53,10 @@ class Phase(enum.IntEnum):
     FAILED = 7  # the arm could not reach a commanded pose
 
 
+# Plain numbers of the phases the per-step references test (faster than
+# the enum's attribute lookup).
+_THROW, _LOWER = int(Phase.THROW), int(Phase.LOWER)
+
 # Layout of the discrete state vector.
 _PHASE, _T0, _T, _T_CLOSE, _T_OPEN, _H_DOWN, _TICK = range(7)
 _QA = slice(7, 13)
@@ -134,6 +138,8 @@ class CatchStateMachine(LeafSystem):
         self._hold = self._open + scenario.throw.hold_closure * (
             self._closed - self._open)
         self._speed = finger_speed_rad_per_s
+        self._zeros6 = np.zeros(6)
+        self._zeros_hand = np.zeros(len(self._open))
         self._park_q = None if park_q is None else np.asarray(park_q, float)
         t = scenario.throw
         self._t_throw = t.settle_s
@@ -183,11 +189,14 @@ class CatchStateMachine(LeafSystem):
     # ---- references ----------------------------------------------------
     def _arm_reference(self, x, t):
         """The arm's (q, v, v̇) reference at time t in state x."""
-        if x[_PHASE] == Phase.THROW:
+        if x[_PHASE] == _THROW:
             tau = min(t - self._t_throw, self._throw.knot_times_s[-1])
             return self._throw_reference(tau)
         T = x[_T]
-        s, ds, dds = _quintic((t - x[_T0]) / T)
+        tau = (t - x[_T0]) / T
+        if tau >= 1.0:  # the segment is done: rest at its end
+            return x[_QB], self._zeros6, self._zeros6
+        s, ds, dds = _quintic(tau)
         dq = x[_QB] - x[_QA]
         return x[_QA] + s * dq, ds / T * dq, dds / T**2 * dq
 
@@ -206,14 +215,16 @@ class CatchStateMachine(LeafSystem):
         their maximum speed toward the hold posture (from t_close while
         settling and throwing), open (from the release), or closed (from
         t_close once catching)."""
-        if x[_PHASE] <= Phase.THROW and t < self._t_release:
+        if x[_PHASE] <= _THROW and t < self._t_release:
             return self._ramp(self._open, self._hold, t - x[_T_CLOSE])
-        if x[_PHASE] < Phase.LOWER:
+        if x[_PHASE] < _LOWER:
             return self._ramp(self._hold, self._open, t - self._t_release)
         return self._ramp(self._open, self._closed, t - x[_T_CLOSE])
 
     def _ramp(self, q_from, q_to, elapsed):
         delta = q_to - q_from
+        if self._speed * elapsed >= np.max(np.abs(delta)):  # arrived
+            return q_to, self._zeros_hand
         travel = np.minimum(np.abs(delta), self._speed * max(elapsed, 0.0))
         moving = np.abs(delta) > travel
         q = q_from + np.sign(delta) * travel

@@ -253,6 +253,17 @@ class InfraredSensors(LeafSystem):
             body = frame.body()
             self._frame_ids.append(plant.GetBodyFrameIdOrThrow(body.index()))
             self._X_BS.append(frame.GetFixedPoseInBodyFrame())
+        # The same rays grouped by body frame (usually all on the palm), as
+        # origins p_BS and directions z_BS (k×3), so that one pose query per
+        # body places them all.
+        self._ray_groups = []
+        for frame_id in dict.fromkeys(self._frame_ids):
+            index = [i for i, f in enumerate(self._frame_ids) if f == frame_id]
+            self._ray_groups.append((
+                frame_id, np.array(index),
+                np.array([self._X_BS[i].translation() for i in index]),
+                np.array([self._X_BS[i].rotation().col(2) for i in index])))
+        self._ranges = np.array(self._ranges_m)
 
         self._query_port = self.DeclareAbstractInputPort(
             "query_object", AbstractValue.Make(QueryObject())
@@ -279,26 +290,43 @@ class InfraredSensors(LeafSystem):
     def read_levels(self, query_object: QueryObject) -> np.ndarray:
         """Returns each sensor's level for the geometry poses in query_object."""
         distances = np.full(len(self._ranges_m), np.inf)
+        p_WS, z_W = self._rays(query_object)
+        # Rays that cannot reach the target bound read nothing: when no ray
+        # can (the object is far from the hand), nothing else is computed.
+        live = np.ones(len(p_WS), bool)
+        if self._bound is not None:
+            p_WC = query_object.GetPoseInWorld(self._bound[0]).translation()
+            live = _sphere_hits(p_WS, z_W, p_WC, self._bound[1]) < self._ranges
+            if not live.any():
+                return np.full(len(p_WS), float(self._levels))
         if self._cast:
-            distances = self._cast_distances(query_object)
+            distances[live] = self._cast_distances(
+                query_object, p_WS[live], z_W[live])
         if self._target_ids:
             distances = np.minimum(distances, self._trace_distances(query_object))
         return np.array([quantize(s, r, self._levels)
-                         for s, r in zip(distances, self._ranges_m)])
+                         for s, r in zip(distances, self._ranges_m)], float)
 
     def _rays(self, query_object):
         """Every sensor's ray in the world: origins and unit directions (N×3)."""
-        X_WS = [query_object.GetPoseInWorld(frame_id) @ X_BS
-                for frame_id, X_BS in zip(self._frame_ids, self._X_BS)]
-        return (np.array([X.translation() for X in X_WS]),
-                np.array([X.rotation().col(2) for X in X_WS]))
+        p_WS = np.empty((len(self._ranges_m), 3))
+        z_W = np.empty_like(p_WS)
+        for frame_id, index, p_BS, z_BS in self._ray_groups:
+            X_WB = query_object.GetPoseInWorld(frame_id)
+            R_WB = X_WB.rotation().matrix()
+            p_WS[index] = p_BS @ R_WB.T + X_WB.translation()
+            z_W[index] = z_BS @ R_WB.T
+        return p_WS, z_W
 
-    def _cast_distances(self, query_object):
-        """Closed-form distances to the first cast target (inf: none)."""
-        p_WS, z_W = self._rays(query_object)
+    def _cast_distances(self, query_object, p_WS, z_W):
+        """Closed-form distances along the rays (p_WS, z_W: N×3) to the first
+        cast target (inf: none)."""
         distances = np.full(len(p_WS), np.inf)
+        poses = {}
         for frame_id, X_FG, shape in self._cast:
-            X_GW = (query_object.GetPoseInWorld(frame_id) @ X_FG).inverse()
+            if frame_id not in poses:
+                poses[frame_id] = query_object.GetPoseInWorld(frame_id)
+            X_GW = (poses[frame_id] @ X_FG).inverse()
             R_GW = X_GW.rotation().matrix()
             o = p_WS @ R_GW.T + X_GW.translation()
             d = z_W @ R_GW.T
