@@ -16,7 +16,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from regrasp_drake.errors import InputError
 from regrasp_drake.planning.catch_plan import (
     CatchPoint,
-    find_catch_points,
+    catch_moments,
     palm_poses_for,
 )
 from regrasp_drake.planning.ik import ArmIk
@@ -51,16 +51,23 @@ def crossing_time(height, z0=0.8, vz0=3.0):
     return (vz0 + np.sqrt(vz0 ** 2 + 2 * G * (z0 - height))) / G
 
 
-class TestCatchPoints(unittest.TestCase):
+def moments(t, x, *, height_m=0.78, band_m=0.3, tilt_tolerance=0.1,
+            ready_s=0.0):
+    """catch_moments on an analytic flight of a symmetric object (no fall
+    preference, so that only tilt, flatness and height order them)."""
+    obj = load_catalogue()["table1-row1"]
+    return catch_moments(t, x, obj, height_m=height_m, band_m=band_m,
+                         ready_s=ready_s, fall_m=0.0,
+                         tilt_tolerance=tilt_tolerance)
+
+
+class TestCatchMoments(unittest.TestCase):
     def test_horizontal_at_the_catch_height(self):
         """The axis turns horizontal exactly where the object falls through
-        the catch height: one catch point there, with v_catch = vz0 - g t."""
+        the catch height: the best moment is there, with v_catch = vz0 - g t."""
         t_h = crossing_time(0.78)
         t, x = tumbling_flight(lambda t: 8.0 * (t - t_h) + np.pi)
-        points = find_catch_points(t, x, height_m=0.78, tilt_tolerance=0.1,
-                                   band_m=0.3)
-        self.assertEqual(len(points), 1)
-        c = points[0]
+        c = moments(t, x)[0]
         self.assertAlmostEqual(c.t_s, t_h, delta=DT)
         self.assertAlmostEqual(c.p_WO[2], 0.78, delta=3.0 * DT * 3.1)
         self.assertAlmostEqual(c.v_catch, 3.0 - G * t_h, delta=G * DT)
@@ -68,46 +75,39 @@ class TestCatchPoints(unittest.TestCase):
         np.testing.assert_allclose(np.abs(c.y_W), [0, 1, 0], atol=0.01)
         self.assertLess(c.tilt, 8.0 * DT)
 
-    def test_passages_nearest_height_first(self):
-        """The axis turns horizontal several times: every passage of the
-        descent within the band is a catch point, nearest the catch height
-        first; the passages of the ascent and outside the band are not."""
+    def test_horizontal_moments_first_descent_in_band_only(self):
+        """The axis turns horizontal several times: every moment of the
+        descent within the band is a candidate, those within the tilt
+        tolerance first, each group nearest the catch height first; the
+        ascent, the samples outside the band, and the moments before the hand
+        is ready are not candidates."""
         t_near, t_far = crossing_time(0.80), crossing_time(1.0)
         rate = np.pi / (t_near - t_far)  # half a turn between the two
         t, x = tumbling_flight(lambda t: rate * (t - t_far))
-        points = find_catch_points(t, x, height_m=0.78, tilt_tolerance=0.1,
-                                   band_m=0.3)
-        # The known answer: angle = kπ at t_far + kπ/rate.
-        apex = 3.0 / G
-        passages = [t_far + k * np.pi / rate for k in range(-20, 20)]
-        height = [0.8 + 3.0 * tk - 0.5 * G * tk ** 2 for tk in passages]
-        expected = sorted(
-            (abs(z - 0.78), tk) for tk, z in zip(passages, height)
-            if apex < tk < t[-1] and abs(z - 0.78) <= 0.3)
-        self.assertGreaterEqual(len(expected), 3)
-        self.assertTrue(any(0 < tk < apex for tk in passages),
-                        "the flight also turns horizontal rising")
-        self.assertEqual(len(points), len(expected))
-        # Each point is the sample of its passage (tilt below the tolerance,
-        # within asin(0.1)/rate of the horizontal moment) nearest the height.
-        window = np.arcsin(0.1) / rate + DT
-        for point, (_, tk) in zip(points, expected):
-            self.assertAlmostEqual(point.t_s, tk, delta=window)
-            self.assertLess(point.tilt, 0.1)
-            self.assertAlmostEqual(point.v_catch, 3.0 - G * point.t_s,
-                                   delta=1e-9)
+        ready_s = 3.0 / G + 0.02  # just after the apex
+        points = moments(t, x, ready_s=ready_s)
+        z = x[6]
+        expected = {round(tk, 6) for tk, zk, vk in zip(t, z, x[12])
+                    if tk >= ready_s and vk < 0 and abs(zk - 0.78) <= 0.3}
+        self.assertEqual({round(p.t_s, 6) for p in points}, expected)
+        tilted = [p.tilt >= 0.1 for p in points]
+        self.assertEqual(tilted, sorted(tilted))  # level ones first
+        level = [p for p in points if p.tilt < 0.1]
+        self.assertGreaterEqual(len(level), 2)
+        # Each level moment is near a horizontal passage, angle = kπ.
+        for p in level:
+            k = round(rate * (p.t_s - t_far) / np.pi)
+            self.assertLess(abs(rate * (p.t_s - t_far) - k * np.pi),
+                            np.arcsin(0.1) + rate * DT)
+            self.assertAlmostEqual(p.v_catch, 3.0 - G * p.t_s, delta=1e-9)
+        heights = [abs(p.p_WO[2] - 0.78) for p in level]
+        self.assertEqual(heights, sorted(heights))
 
-    def test_none_when_the_axis_never_turns_horizontal(self):
-        t, x = tumbling_flight(lambda t: 0.5 + 0.7 * t)  # 0.5 … 1.13 rad
-        self.assertEqual(find_catch_points(t, x, height_m=0.78,
-                                           tilt_tolerance=0.15), [])
-
-    def test_none_when_horizontal_outside_the_band(self):
-        t_low = crossing_time(0.3)
-        t, x = tumbling_flight(lambda t: 4.0 * (t - t_low) + np.pi,
-                               duration_s=1.1)
-        self.assertEqual(find_catch_points(t, x, height_m=0.78,
-                                           tilt_tolerance=0.1, band_m=0.2), [])
+    def test_none_when_the_flight_stays_below_the_band(self):
+        """A low toss (apex 0.25 m) never comes within 0.2 m of 0.78 m."""
+        t, x = tumbling_flight(lambda t: 4.0 * t, p0=(0.85, -0.1, 0.2),
+                               v0=(0.0, 0.0, 1.0), duration_s=0.3)
+        self.assertEqual(moments(t, x, band_m=0.2), [])
 
 
 class TestPalmPose(unittest.TestCase):

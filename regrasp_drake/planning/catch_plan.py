@@ -3,9 +3,9 @@
 A catch point is a moment of the descent where the object's symmetry axis y_O
 is horizontal (|y_O · z_W| below a tolerance) and the object is at a height the
 hand can wait at. The paper catches "where the object is horizontal,
-otherwise the probability of catching is reduced" (§V). `find_catch_points`
-lists the horizontal passages; `catch_moments` ranks every moment the hand can
-be in place for (the plan's choice, see throw_catch.plan_catch).
+otherwise the probability of catching is reduced" (§V). `catch_moments` ranks
+every moment the hand can be in place for, horizontal ones first (the plan's
+choice, see throw_catch.plan_catch).
 
 The palm waits under the object as it will be at that moment, parallel to its
 axis: just below its lowest point (a piece hanging below the grasp piece lands
@@ -45,45 +45,6 @@ class CatchPoint:
                 "p_WO": [round(float(c), 5) for c in self.p_WO],
                 "axis_W": [round(float(c), 5) for c in self.y_W],
                 "v_catch": round(self.v_catch, 4), "tilt": round(self.tilt, 5)}
-
-
-def find_catch_points(t, object_state, *, height_m: float,
-                      tilt_tolerance: float = 0.1,
-                      band_m: float = 0.08) -> list[CatchPoint]:
-    """Catch points of a logged flight (13-row object states: wxyz quaternion,
-    p_WO, w_WO, v_WO), best first.
-
-    In the descent, within `band_m` of `height_m`, the moments where the
-    object's axis is horizontal: each horizontal passage (a run of samples
-    with |y_O · z_W| < tilt_tolerance) gives its sample nearest `height_m`;
-    the points are ordered by their distance to `height_m`."""
-    t = np.asarray(t)
-    p = object_state[4:7]
-    v = object_state[10:13]
-    R_WO = [_rotation(object_state[:4, k]) for k in range(len(t))]
-    tilt = np.array([abs(R[2, 1]) for R in R_WO])
-    apex = int(np.argmax(p[2]))
-    in_band = np.zeros(len(t), bool)
-    in_band[apex:] = (np.abs(p[2, apex:] - height_m) <= band_m) & (
-        v[2, apex:] < 0)
-    ok = in_band & (tilt < tilt_tolerance)
-    points = []
-    k = 0
-    while k < len(t):
-        if not ok[k]:
-            k += 1
-            continue
-        run = [k]
-        while k + 1 < len(t) and ok[k + 1]:
-            k += 1
-            run.append(k)
-        k += 1
-        run = np.array(run)
-        # The horizontal moment nearest the preferred height.
-        best = run[np.argmin(np.abs(p[2, run] - height_m))]
-        points.append(_point(t, p, v, R_WO, best))
-    points.sort(key=lambda c: abs(c.p_WO[2] - height_m))
-    return points
 
 
 def _rotation(quaternion_wxyz) -> np.ndarray:
