@@ -12,8 +12,13 @@ from pathlib import Path
 
 import numpy as np
 
-from regrasp_drake.learning.dataset import (SHAPE, generate, label_cell,
-                                            load_map, robustness)
+from regrasp_drake.learning.dataset import (
+    SHAPE,
+    generate,
+    label_cell,
+    load_map,
+    robustness,
+)
 
 OBJECTS = ["table1-row2", "table1-row1"]
 # A coarse grid: h_catch 0.12, 0.28 × h_down -0.11, -0.05.

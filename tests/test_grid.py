@@ -2,8 +2,14 @@
 
 import unittest
 
-from regrasp_drake.grid import (H_CATCH_VALUES, H_DOWN_VALUES, cell_parameters,
-                                cells, format_map, nearest_cell)
+from regrasp_drake.grid import (
+    H_CATCH_VALUES,
+    H_DOWN_VALUES,
+    cell_parameters,
+    cells,
+    format_map,
+    nearest_cell,
+)
 from regrasp_drake.station.scenario import H_CATCH_RANGE, H_DOWN_RANGE
 
 

@@ -4,6 +4,7 @@ import unittest
 import xml.etree.ElementTree as ET
 
 import numpy as np
+from pydrake.geometry import Cylinder
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.math import SpatialForce
 from pydrake.multibody.plant import (
@@ -14,7 +15,6 @@ from pydrake.multibody.plant import (
     ExternallyAppliedSpatialForce,
     MultibodyPlant,
 )
-from pydrake.geometry import Cylinder
 from pydrake.multibody.tree import SpatialInertia
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
@@ -60,7 +60,9 @@ def sdf_link_inertials(path):
         inertial = link.find("inertial")
         pose = [float(x) for x in inertial.find("pose").text.split()]
         assert pose[3:] == [0.0, 0.0, 0.0], link.get("name")
-        moments = [float(inertial.find(f"inertia/{k}").text) for k in ("ixx", "iyy", "izz")]
+        moments = [
+            float(inertial.find(f"inertia/{k}").text) for k in ("ixx", "iyy", "izz")
+        ]
         inertials[link.get("name")] = (
             float(inertial.find("mass").text),
             np.array(pose[:3]),
@@ -126,7 +128,9 @@ class TestArm(unittest.TestCase):
         np.testing.assert_allclose(
             np.rad2deg(lower), [-160, -45, -225, -110, -100, -266], atol=1e-6
         )
-        np.testing.assert_allclose(np.rad2deg(upper), [160, 225, 45, 170, 100, 266], atol=1e-6)
+        np.testing.assert_allclose(
+            np.rad2deg(upper), [160, 225, 45, 170, 100, 266], atol=1e-6
+        )
 
 
 class TestRobotModel(unittest.TestCase):
@@ -135,7 +139,9 @@ class TestRobotModel(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         builder = DiagramBuilder()
-        cls.plant, cls.scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=1e-3)
+        cls.plant, cls.scene_graph = AddMultibodyPlantSceneGraph(
+            builder, time_step=1e-3
+        )
         cls.robot = robot.add_puma_and_hand(cls.plant)
         cls.plant.Finalize()
         robot.exclude_robot_self_collisions(cls.plant, cls.scene_graph)
@@ -160,7 +166,9 @@ class TestRobotModel(unittest.TestCase):
                     # Catches Drake silently replacing an invalid inertia by a sphere.
                     self.assertAlmostEqual(body.default_mass(), mass, places=12)
                     np.testing.assert_allclose(body.default_com(), p_BoBcm, atol=1e-12)
-                    np.testing.assert_allclose(I_BBcm_B.get_moments(), moments, rtol=1e-12)
+                    np.testing.assert_allclose(
+                        I_BBcm_B.get_moments(), moments, rtol=1e-12
+                    )
                     np.testing.assert_allclose(I_BBcm_B.get_products(), 0.0, atol=1e-15)
                     self.assertTrue(M_BBo_B.IsPhysicallyValid())
         hand_mass = sum(b.default_mass() for b in self.bodies(self.robot.hand))
@@ -179,10 +187,12 @@ class TestRobotModel(unittest.TestCase):
 
     def test_actuators_carry_the_papers_limits(self):
         actuators = [
-            self.plant.get_joint_actuator(i) for i in self.plant.GetJointActuatorIndices()
+            self.plant.get_joint_actuator(i)
+            for i in self.plant.GetJointActuatorIndices()
         ]
         self.assertEqual(
-            tuple(a.joint().name() for a in actuators), robot.ARM_JOINTS + robot.HAND_JOINTS
+            tuple(a.joint().name() for a in actuators),
+            robot.ARM_JOINTS + robot.HAND_JOINTS,
         )
         efforts = [a.effort_limit() for a in actuators]
         np.testing.assert_allclose(efforts[:6], [150, 186.4, 89.4, 24.2, 20.1, 21.3])
@@ -193,10 +203,14 @@ class TestRobotModel(unittest.TestCase):
         self.assertFalse(any(a.has_controller() for a in actuators[:6]))
         self.assertTrue(all(a.has_controller() for a in actuators[6:]))
         # Reflected rotor inertia Jm G^2 of the published table (joint 2: 2.325).
-        self.assertAlmostEqual(actuators[1].default_reflected_inertia(), 2.325, delta=1e-3)
+        self.assertAlmostEqual(
+            actuators[1].default_reflected_inertia(), 2.325, delta=1e-3
+        )
         for name in robot.HAND_JOINTS:
             joint = self.plant.GetJointByName(name, self.robot.hand)
-            self.assertAlmostEqual(joint.velocity_upper_limits()[0], robot.FINGER_MAX_SPEED, 2)
+            self.assertAlmostEqual(
+                joint.velocity_upper_limits()[0], robot.FINGER_MAX_SPEED, 2
+            )
 
     def test_hand_mount(self):
         link6 = self.plant.GetFrameByName("link6", self.robot.arm)
@@ -237,9 +251,12 @@ class TestRobotModel(unittest.TestCase):
             for g in self.plant.GetCollisionGeometriesForBody(palm)
         }
         bumper, palm_box = boxes["bumper"], boxes["palm_collision"]
-        np.testing.assert_allclose(inspector.GetShape(bumper).size(), [0.03, 0.06, 0.001])
+        np.testing.assert_allclose(
+            inspector.GetShape(bumper).size(), [0.03, 0.06, 0.001]
+        )
         top = {
-            g: inspector.GetPoseInFrame(g).translation()[2] + inspector.GetShape(g).height() / 2
+            g: inspector.GetPoseInFrame(g).translation()[2]
+            + inspector.GetShape(g).height() / 2
             for g in (bumper, palm_box)
         }
         self.assertAlmostEqual(top[bumper] - top[palm_box], 0.001, places=12)
@@ -247,7 +264,11 @@ class TestRobotModel(unittest.TestCase):
     def test_self_collisions_are_filtered(self):
         inspector = self.scene_graph.model_inspector()
         arm_geometries, hand_geometries = (
-            [g for b in self.bodies(i) for g in self.plant.GetCollisionGeometriesForBody(b)]
+            [
+                g
+                for b in self.bodies(i)
+                for g in self.plant.GetCollisionGeometriesForBody(b)
+            ]
             for i in (self.robot.arm, self.robot.hand)
         )
         self.assertGreater(len(arm_geometries), 6)
@@ -256,7 +277,9 @@ class TestRobotModel(unittest.TestCase):
             for h in hand_geometries:
                 self.assertTrue(inspector.CollisionFiltered(a, h))
         # Two fingertips of the same hand could otherwise touch.
-        self.assertTrue(inspector.CollisionFiltered(hand_geometries[-1], hand_geometries[-3]))
+        self.assertTrue(
+            inspector.CollisionFiltered(hand_geometries[-1], hand_geometries[-3])
+        )
 
     def test_control_plant_matches_arm_with_open_hand(self):
         control = robot.make_arm_control_plant()
@@ -264,7 +287,9 @@ class TestRobotModel(unittest.TestCase):
         self.assertEqual(control.num_actuators(), 6)
         self.assertEqual(control.time_step(), 0.0)
         hand_mass = sum(b.default_mass() for b in self.bodies(self.robot.hand))
-        self.assertAlmostEqual(control.GetBodyByName("hand").default_mass(), hand_mass, 12)
+        self.assertAlmostEqual(
+            control.GetBodyByName("hand").default_mass(), hand_mass, 12
+        )
         control_context = control.CreateDefaultContext()
         rng = np.random.default_rng(2)
         arm_v = slice(0, 6)
@@ -285,7 +310,9 @@ class TestRobotModel(unittest.TestCase):
                 )
         # The hand's weight is felt: at qz joint 2 carries more than the bare arm.
         control.SetPositions(control_context, robot.QZ)
-        self.assertGreater(-control.CalcGravityGeneralizedForces(control_context)[1], 37.48 + 0.5)
+        self.assertGreater(
+            -control.CalcGravityGeneralizedForces(control_context)[1], 37.48 + 0.5
+        )
 
 
 class TestHandEnvelope(unittest.TestCase):
@@ -312,14 +339,20 @@ class TestHandEnvelope(unittest.TestCase):
         )
         X_BG = RigidTransform(RotationMatrix.MakeXRotation(np.pi / 2))  # axis along y
         plant.RegisterCollisionGeometry(
-            cylinder, X_BG, Cylinder(radius, length), "cylinder", CoulombFriction(0.8, 0.8)
+            cylinder,
+            X_BG,
+            Cylinder(radius, length),
+            "cylinder",
+            CoulombFriction(0.8, 0.8),
         )
         plant.Finalize()
         robot.exclude_robot_self_collisions(plant, scene_graph)
         simulator = Simulator(builder.Build())
         context = plant.GetMyMutableContextFromRoot(simulator.get_mutable_context())
-        # Resting on the bumper (top 0.011 m above the palm mid-plane) at the palm centre.
-        plant.SetFreeBodyPose(context, cylinder, RigidTransform([0.045, 0, 0.011 + radius]))
+        # Resting on the bumper (top 0.011 m above the palm mid-plane), palm centre.
+        plant.SetFreeBodyPose(
+            context, cylinder, RigidTransform([0.045, 0, 0.011 + radius])
+        )
 
         desired_state = plant.get_desired_state_input_port(hand)
         dt = 0.01
@@ -331,7 +364,9 @@ class TestHandEnvelope(unittest.TestCase):
 
         contacts = plant.get_contact_results_output_port().Eval(context)
         finger_of = {
-            name: finger for finger, links in robot.FINGER_LINKS.items() for name in links
+            name: finger
+            for finger, links in robot.FINGER_LINKS.items()
+            for name in links
         }
         touching = set()
         for i in range(contacts.num_point_pair_contacts()):
@@ -351,10 +386,12 @@ class TestHandEnvelope(unittest.TestCase):
         return touching, np.linalg.norm(p_WC1 - p_WC0)
 
     def test_closed_hand_holds_cylinders(self):
-        # ~0.1 kg cylinders of 5 and 10 cm, and a 0.3 kg one (the servos' holding margin).
+        # ~0.1 kg cylinders of 5 and 10 cm, and a 0.3 kg one (holding margin).
         for diameter, mass in ((0.05, 0.1), (0.10, 0.1), (0.10, 0.3)):
             with self.subTest(diameter=diameter, mass=mass):
-                touching, displacement = self.simulate(diameter, robot.HAND_CLOSED, mass)
+                touching, displacement = self.simulate(
+                    diameter, robot.HAND_CLOSED, mass
+                )
                 self.assertIn("thumb", touching)
                 self.assertGreaterEqual(len(touching), 3)
                 self.assertLess(displacement, 0.02)

@@ -5,8 +5,11 @@ import unittest
 from pathlib import Path
 
 from regrasp_drake.errors import InputError
-from regrasp_drake.station.scenario import (Scenario, check_catch_parameters,
-                                            load_scenario)
+from regrasp_drake.station.scenario import (
+    Scenario,
+    check_catch_parameters,
+    load_scenario,
+)
 
 
 class TestScenario(unittest.TestCase):

@@ -19,8 +19,12 @@ from pydrake.math import RigidTransform, RotationMatrix
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.catch_state_machine import Phase
 from regrasp_drake.station.episode import run_episode
-from regrasp_drake.station.replay import (CHROMIUM, make_meshcat,
-                                          render_html_to_png, save_html)
+from regrasp_drake.station.replay import (
+    CHROMIUM,
+    make_meshcat,
+    render_html_to_png,
+    save_html,
+)
 from regrasp_drake.station.scenario import load_scenario
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world import robot

@@ -127,7 +127,9 @@ def make_arm_control_plant() -> MultibodyPlant:
     full.SetPositions(context, robot.hand, HAND_OPEN)
     # M_HL6_L6: the hand's spatial inertia about link6's origin, expressed in link6.
     M_HL6_L6 = full.CalcSpatialInertia(
-        context, full.GetFrameByName("link6", robot.arm), full.GetBodyIndices(robot.hand)
+        context,
+        full.GetFrameByName("link6", robot.arm),
+        full.GetBodyIndices(robot.hand),
     )
 
     plant = MultibodyPlant(time_step=0.0)
@@ -140,7 +142,9 @@ def make_arm_control_plant() -> MultibodyPlant:
     return plant
 
 
-def exclude_robot_self_collisions(plant: MultibodyPlant, scene_graph: SceneGraph) -> None:
+def exclude_robot_self_collisions(
+    plant: MultibodyPlant, scene_graph: SceneGraph
+) -> None:
     """Filters out every collision between two geometries of the arm and the hand.
 
     Arm and hand geometries still collide with everything else (object, ground).
