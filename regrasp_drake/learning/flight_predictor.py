@@ -367,7 +367,10 @@ def train_from_dataset(data_dir, scenario, out, *, ik, eval_objects=(),
     from regrasp_drake.throw_catch import watch
     from regrasp_drake.world.objects import resolve_object
     data_dir = Path(data_dir)
-    plans = sorted((data_dir / "plans").glob("*.json"))
+    # One flight per object: an object's other catch points (<object>@k)
+    # share its watched throw.
+    plans = sorted(p for p in (data_dir / "plans").glob("*.json")
+                   if "@" not in p.stem)
     objects, states = [], []
     for path in plans:
         entry = json.loads(path.read_text())
