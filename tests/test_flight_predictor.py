@@ -1,0 +1,173 @@
+"""The flight predictor of the first-throw mode, and the first-throw mode."""
+
+import json
+import tempfile
+import unittest
+from pathlib import Path
+
+import numpy as np
+
+from regrasp_drake.errors import InputError
+from regrasp_drake.learning.flight_predictor import (
+    FlightPredictor,
+    free_time_s,
+    object_inputs,
+)
+from regrasp_drake.learning.learning_phase import learn
+from regrasp_drake.paths import MODELS_DIR
+from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station.mlp_system import load_weights
+from regrasp_drake.station.scenario import load_scenario
+from regrasp_drake.throw_catch import plan_catch
+from regrasp_drake.world.objects import load_catalogue
+
+SHIPPED = MODELS_DIR / "flight_predictor.json"
+
+
+class PredictorTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.scenario = load_scenario()
+        cls.catalogue = load_catalogue()
+        cls.predictor = FlightPredictor.load(SHIPPED)
+
+    def test_shipped_predictor_is_for_the_shipped_throw(self):
+        self.assertAlmostEqual(self.predictor.t_free_s(),
+                               free_time_s(self.scenario), places=9)
+
+    def test_predicted_state_is_a_flight_state(self):
+        """A unit quaternion, the object above the hand and rising, for every
+        test and held-out object (none of them trained on)."""
+        for name, obj in self.catalogue.items():
+            if obj.set == "train":
+                continue
+            with self.subTest(name):
+                x = self.predictor.predict_state(obj)
+                self.assertEqual(x.shape, (13,))
+                self.assertAlmostEqual(np.linalg.norm(x[:4]), 1.0, places=9)
+                self.assertGreater(x[6], 0.5)   # z of the object, m
+                self.assertGreater(x[12], 0.0)  # rising after the throw
+
+    def test_predicted_flight_falls_under_gravity(self):
+        """The predicted flight is physics: its centre of mass follows a
+        parabola with the scenario's g."""
+        obj = self.catalogue["table1-row2"]
+        t, x = self.predictor.predict_flight(obj, self.scenario)
+        from pydrake.common.eigen_geometry import Quaternion
+        from pydrake.math import RotationMatrix
+        p_Cm = np.array([x[4:7, k] + RotationMatrix(Quaternion(
+            x[:4, k] / np.linalg.norm(x[:4, k]))).matrix() @ obj.p_OCm
+            for k in range(len(t))])
+        a = np.polyfit(t - t[0], p_Cm[:, 2], 2)[0] * 2.0
+        self.assertAlmostEqual(a, -self.scenario.gravity_m_per_s2, delta=1e-6)
+        np.testing.assert_allclose(np.polyfit(t - t[0], p_Cm[:, 0], 2)[0], 0,
+                                   atol=1e-9)
+
+    def test_fit_with_huge_penalty_predicts_the_training_mean(self):
+        """With an enormous penalty every regression is its intercept: any
+        object's predicted centre-of-mass velocity is the training mean."""
+        from pydrake.common.eigen_geometry import Quaternion
+        from pydrake.math import RotationMatrix
+
+        def v_Cm(obj, x):
+            R = RotationMatrix(Quaternion(x[:4] / np.linalg.norm(x[:4])))
+            return x[10:13] + np.cross(x[7:10], R.matrix() @ obj.p_OCm)
+
+        objects = [o for o in self.catalogue.values() if o.set == "train"][:12]
+        rng = np.random.default_rng(3)
+        states = []
+        for _ in objects:
+            q = rng.normal(size=4)
+            states.append(np.concatenate([
+                q / np.linalg.norm(q), rng.normal([0.9, -0.1, 1.3], 0.01),
+                rng.normal(0, 1, 3), rng.normal([0, 0, 0.8], 0.05)]))
+        mean = np.mean([v_Cm(o, x) for o, x in zip(objects, states)], axis=0)
+        predictor = FlightPredictor.fit(objects, states, t_free_s=0.864,
+                                        ridge=1e12)
+        obj = self.catalogue["table1-row1"]
+        np.testing.assert_allclose(v_Cm(obj, predictor.predict_state(obj)),
+                                   mean, atol=1e-6)
+
+    def test_round_trip_through_json(self):
+        with tempfile.TemporaryDirectory() as d:
+            path = self.predictor.save(Path(d) / "p.json")
+            again = FlightPredictor.load(path)
+        for name in ("table1-row4", "holdout-mallet-d120"):
+            obj = self.catalogue[name]
+            np.testing.assert_array_equal(again.predict_state(obj),
+                                          self.predictor.predict_state(obj))
+        self.assertEqual(len(object_inputs(obj)), len(json.loads(
+            SHIPPED.read_text())["inputs"]))
+
+    def test_missing_corrupt_and_foreign_files_refused(self):
+        with tempfile.TemporaryDirectory() as d:
+            d = Path(d)
+            with self.assertRaises(InputError) as e:
+                FlightPredictor.load(d / "absent.json")
+            self.assertIn("absent.json", str(e.exception))
+            (d / "corrupt.json").write_text("{not json")
+            with self.assertRaises(InputError) as e:
+                FlightPredictor.load(d / "corrupt.json")
+            self.assertIn("corrupt.json", str(e.exception))
+            data = json.loads(SHIPPED.read_text())
+            data["format"] = "something else"
+            (d / "foreign.json").write_text(json.dumps(data))
+            with self.assertRaises(InputError) as e:
+                FlightPredictor.load(d / "foreign.json")
+            self.assertIn("format", str(e.exception))
+            data = json.loads(SHIPPED.read_text())
+            data["weights"] = data["weights"][:-1]
+            (d / "short.json").write_text(json.dumps(data))
+            with self.assertRaises(InputError) as e:
+                FlightPredictor.load(d / "short.json")
+            self.assertIn("weights", str(e.exception))
+
+
+class FirstThrowModeTest(unittest.TestCase):
+    """First-throw mode on one test object: no watching throw; the first
+    throw is a catch attempt at the network's cell on the predicted flight's
+    plan, and when it fails the search goes on, the throws counted."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.scenario = load_scenario()
+        cls.obj = load_catalogue()["table1-row2"]
+        cls.ik = ArmIk()
+        cls.predictor = FlightPredictor.load(SHIPPED)
+        cls.model, _ = load_weights(MODELS_DIR / "catch_mlp.pt")
+        cls.result = learn(cls.scenario, cls.obj, cls.model, ik=cls.ik,
+                           flight_predictor=cls.predictor, max_throws=2,
+                           progress=None)
+
+    def test_no_watching_throw(self):
+        self.assertIsNone(self.result.watched)
+        self.assertEqual(self.result.attempts[0].throw, 1)
+        self.assertEqual(self.result.attempts[0].cell, self.result.start_cell)
+
+    def test_plan_is_the_predicted_flights(self):
+        plan = plan_catch(self.scenario, self.obj, self.ik,
+                          self.predictor.as_watched(self.obj, self.scenario))
+        self.assertEqual(self.result.plan.catch_point.t_s, plan.catch_point.t_s)
+        np.testing.assert_array_equal(self.result.plan.X_WG.GetAsMatrix4(),
+                                      plan.X_WG.GetAsMatrix4())
+
+    def test_caught_on_throw_one_or_search_counted(self):
+        r = self.result
+        self.assertEqual(r.throws, len(r.attempts))
+        self.assertEqual([a.throw for a in r.attempts],
+                         list(range(1, r.throws + 1)))
+        outcomes = [a.outcome for a in r.attempts]
+        if r.caught:
+            self.assertEqual(outcomes[-1], "caught")
+            self.assertNotIn("caught", outcomes[:-1])
+            self.assertEqual(r.stopped, "caught")
+        else:
+            self.assertEqual(r.throws, 2)  # the cap
+            self.assertEqual(r.stopped, "max_throws")
+            self.assertNotIn("caught", outcomes)
+        self.assertAlmostEqual(r.sim_time_s,
+                               sum(a.sim_time_s for a in r.attempts), places=9)
+
+
+if __name__ == "__main__":
+    unittest.main()
