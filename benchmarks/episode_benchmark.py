@@ -4,7 +4,11 @@
         [--json benchmarks/episode_benchmark.json]
 
 Prints the figures and writes them as JSON. Not a test: machines are noisy;
-compare figures from one run.
+compare figures from one run. For comparison, the same run times the bare
+physics: the same plant (arm, hand, object, ground; same time step and
+contact) and the arm's inverse-dynamics controller with constant references,
+no Python system, for the same simulated time: the ceiling our Python systems
+leave room for.
 """
 
 import argparse
@@ -31,6 +35,64 @@ _PYTHON_SYSTEMS = {
     "catch state machine": ("catch_state_machine.py", None),
     "grasp monitor": ("grasp_monitor.py", "_update"),
 }
+
+
+def plant_only_wall_s(scenario, obj, sim_time_s: float) -> float:
+    """Wall time of the bare physics over sim_time_s (see the docstring):
+    the object falls onto the ground beside the arm, which holds the throw's
+    first knot; the fingers hold open."""
+    import numpy as np
+    from pydrake.geometry import HalfSpace
+    from pydrake.math import RigidTransform
+    from pydrake.multibody.plant import (
+        AddMultibodyPlant,
+        CoulombFriction,
+        MultibodyPlantConfig,
+    )
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.controllers import InverseDynamicsController
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.primitives import ConstantVectorSource
+
+    from regrasp_drake.world import robot
+    from regrasp_drake.world.objects import add_object
+    builder = DiagramBuilder()
+    plant, scene_graph = AddMultibodyPlant(MultibodyPlantConfig(
+        time_step=scenario.time_step_s, contact_model="point",
+        discrete_contact_approximation=(
+            scenario.contact.discrete_contact_approximation)), builder)
+    instances = robot.add_puma_and_hand(plant)
+    friction = CoulombFriction(scenario.contact.friction_coefficient,
+                               scenario.contact.friction_coefficient)
+    body = add_object(plant, obj, friction)
+    plant.RegisterCollisionGeometry(plant.world_body(), RigidTransform(),
+                                    HalfSpace(), "ground", friction)
+    plant.Finalize()
+    robot.exclude_robot_self_collisions(plant, scene_graph)
+    q0 = np.array(scenario.throw.knot_q_rad[0])
+    controller = builder.AddSystem(InverseDynamicsController(
+        robot.make_arm_control_plant(), scenario.arm.kp, scenario.arm.ki,
+        scenario.arm.kd, has_reference_acceleration=True))
+    builder.Connect(plant.get_state_output_port(instances.arm),
+                    controller.get_input_port_estimated_state())
+    builder.Connect(controller.get_output_port_control(),
+                    plant.get_actuation_input_port(instances.arm))
+    for port, value in (
+            (controller.get_input_port_desired_state(),
+             np.concatenate([q0, np.zeros(6)])),
+            (controller.get_input_port_desired_acceleration(), np.zeros(6)),
+            (plant.get_desired_state_input_port(instances.hand),
+             np.zeros(2 * len(robot.HAND_JOINTS)))):
+        builder.Connect(builder.AddSystem(
+            ConstantVectorSource(value)).get_output_port(), port)
+    simulator = Simulator(builder.Build())
+    context = plant.GetMyMutableContextFromRoot(simulator.get_mutable_context())
+    plant.SetPositions(context, instances.arm, q0)
+    plant.SetFreeBodyPose(context, body, RigidTransform([1.2, 0.5, 0.6]))
+    simulator.Initialize()
+    t0 = time.perf_counter()
+    simulator.AdvanceTo(sim_time_s)
+    return time.perf_counter() - t0
 
 
 def main() -> int:
@@ -83,6 +145,14 @@ def main() -> int:
         "python_systems_s (profiled run)": python,
         "outcomes_identical": len({r.outcome for r in results + [profiled]}) == 1,
     }
+    plant_walls = [plant_only_wall_s(scenario, obj, sim)
+                   for _ in range(args.runs)]
+    report["plant_and_controller_only"] = {
+        "median_wall_s": round(statistics.median(plant_walls), 4),
+        "real_time_factor": round(sim / statistics.median(plant_walls), 3),
+        "episode_wall_over_plant_only": round(
+            (statistics.median(walls) - statistics.median(builds))
+            / statistics.median(plant_walls), 3)}
     print(json.dumps(report, indent=1))
     args.json.parent.mkdir(parents=True, exist_ok=True)
     args.json.write_text(json.dumps(report, indent=1) + "\n")
