@@ -242,10 +242,18 @@ def _cmd_train(args) -> int:
     from regrasp_drake.learning.train import train
     from regrasp_drake.paths import MODELS_DIR
     torch.set_num_threads(1)
+    if args.splits < 1:
+        raise InputError(f"--splits: got {args.splits}, expected an integer "
+                         ">= 1")
     data = args.data or MODELS_DIR / "dataset"
     out = args.out or MODELS_DIR / "catch_mlp.pt"
     report = train(data, out, seed=args.seed,
                    curve_png=out.with_name(out.stem + "_training.png"))
+    if args.splits > 1:
+        from regrasp_drake.learning.train import repeated_splits
+        report["repeated_splits"] = repeated_splits(
+            data, range(args.seed, args.seed + args.splits))
+        out.with_suffix(".json").write_text(json.dumps(report, indent=1) + "\n")
     print(json.dumps({k: v for k, v in report.items() if k != "split"},
                      indent=1))
     print(f"weights: {out}; report: {out.with_suffix('.json')}; curve: "
@@ -394,6 +402,9 @@ def make_parser() -> argparse.ArgumentParser:
                    help="weights file (default models/catch_mlp.pt)")
     p.add_argument("--seed", type=int, default=0,
                    help="seed of the split and the initial weights")
+    p.add_argument("--splits", type=int, default=5, metavar="N",
+                   help="also judge the network over N random splits (seeds "
+                        "seed … seed+N-1; default 5, 1 for none)")
     p.set_defaults(func=_cmd_train)
 
     p = sub.add_parser("table1", help="the paper's Table 1: the learning "

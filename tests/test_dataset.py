@@ -48,6 +48,28 @@ class LabelTest(unittest.TestCase):
         self.assertEqual(robustness(np.ones(SHAPE, bool)).min(), 15)
 
 
+class SplitTest(unittest.TestCase):
+    def test_paper_proportions(self):
+        from regrasp_drake.learning.train import split_indices
+        train, val, test = split_indices(64, seed=0)
+        self.assertEqual((len(train), len(val), len(test)), (44, 10, 10))
+        self.assertEqual(sorted(train + val + test), list(range(64)))
+
+    def test_catch_points_of_one_object_stay_together(self):
+        """Two catch points per object: an object's samples are all in one
+        split, and the splits keep the proportions to within one object."""
+        from regrasp_drake.learning.train import split_indices
+        groups = [f"object{k // 2}" for k in range(90)]
+        splits = split_indices(90, seed=4, groups=groups)
+        owner = {}
+        for name, split in zip(("train", "val", "test"), splits):
+            for i in split:
+                self.assertEqual(owner.setdefault(groups[i], name), name)
+        self.assertEqual(sorted(sum(splits, [])), list(range(90)))
+        for split, share in zip(splits, (44, 10, 10)):
+            self.assertLessEqual(abs(len(split) - 90 * share / 64), 2)
+
+
 def _rows(out: Path) -> dict:
     """Every object's cells, without wall times (the only thing that may
     differ between runs)."""

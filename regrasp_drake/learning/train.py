@@ -132,6 +132,26 @@ def train(data_dir: Path, out: Path, *, seed: int = 0, epochs: int = 3000,
     return report
 
 
+def repeated_splits(data_dir: Path, seeds, *, epochs: int = 3000,
+                    learning_rate: float = 0.01) -> dict:
+    """The test-split catch rates of the network and both baselines over
+    several random splits (one training per seed): a test split of a few
+    objects is a noisy judge, their mean over splits less so."""
+    import tempfile
+    rates = {"network": [], "best_constant_cell": [], "mean_label": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        for seed in seeds:
+            report = train(data_dir, Path(tmp) / f"split{seed}.pt", seed=seed,
+                           epochs=epochs, learning_rate=learning_rate)
+            for name in rates:
+                rates[name].append(report["test"][name]["catch_rate"])
+    return {"seeds": list(seeds),
+            "mean_catch_rate": {k: round(float(np.mean(v)), 4)
+                                for k, v in rates.items()},
+            "catch_rates": {k: [round(x, 4) for x in v]
+                            for k, v in rates.items()}}
+
+
 def evaluate(model, samples, data_dir, train_i, test_i) -> dict:
     """Test-split errors and catch rates, with the two baselines."""
     with np.load(Path(data_dir) / "maps.npz") as data:
