@@ -122,10 +122,15 @@ class TestLibrary(unittest.TestCase):
     def test_out_of_range_parameters_refused(self):
         for field, value in (("h_catch", 0.5), ("h_down", 0.02),
                              ("h_catch", "high"), ("cell", [10, 0]),
-                             ("throws", 1), ("side", "left")):
+                             ("throws", 0), ("side", "left")):
             with self.subTest(field=field, value=value):
                 self._write_entry(**{field: value})
                 self._refused(f"objects.obj.{field}", str(value))
+
+    def test_caught_on_the_first_throw_stored(self):
+        """First-throw mode: an entry learned in 1 throw loads."""
+        store(self.path, "first", _entry(throws=1))
+        self.assertEqual(load_library(self.path)["first"].throws, 1)
 
     def test_malformed_pose_refused(self):
         self._write_entry(R_WG=[[1, 0, 0], [0, 1, 0], [0, 0, 2]])

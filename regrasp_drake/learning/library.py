@@ -25,7 +25,8 @@ The file (default `regrasp_library.yaml` in the current directory):
         h_catch: 0.2                 # [m]
         h_down: -0.05                # [m]
         cell: [4, 9]                 # (i_catch, i_down) of the grid
-        throws: 2                    # the learning phase's throws, watch included
+        throws: 2                    # the learning phase's throws, the watch
+                                     # included (1: caught on the first throw)
 """
 
 import dataclasses as dc
@@ -193,8 +194,9 @@ def _entry(where: str, raw) -> LearnedEntry:
         raise field_error(f"{where}.cell", cell,
                           f"[i_catch, i_down], integers below "
                           f"{len(H_CATCH_VALUES)} and {len(H_DOWN_VALUES)}")
-    if not (type(raw["throws"]) is int and raw["throws"] >= 2):
-        raise field_error(f"{where}.throws", raw["throws"], "an integer >= 2")
+    # First-throw mode can catch on throw 1 (no watching throw).
+    if not (type(raw["throws"]) is int and raw["throws"] >= 1):
+        raise field_error(f"{where}.throws", raw["throws"], "an integer >= 1")
     return LearnedEntry(**raw)
 
 
