@@ -42,33 +42,16 @@ def plant_only_wall_s(scenario, obj, sim_time_s: float) -> float:
     the object falls onto the ground beside the arm, which holds the throw's
     first knot; the fingers hold open."""
     import numpy as np
-    from pydrake.geometry import HalfSpace
     from pydrake.math import RigidTransform
-    from pydrake.multibody.plant import (
-        AddMultibodyPlant,
-        CoulombFriction,
-        MultibodyPlantConfig,
-    )
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.controllers import InverseDynamicsController
     from pydrake.systems.framework import DiagramBuilder
     from pydrake.systems.primitives import ConstantVectorSource
 
+    from regrasp_drake.station.station import add_world
     from regrasp_drake.world import robot
-    from regrasp_drake.world.objects import add_object
     builder = DiagramBuilder()
-    plant, scene_graph = AddMultibodyPlant(MultibodyPlantConfig(
-        time_step=scenario.time_step_s, contact_model="point",
-        discrete_contact_approximation=(
-            scenario.contact.discrete_contact_approximation)), builder)
-    instances = robot.add_puma_and_hand(plant)
-    friction = CoulombFriction(scenario.contact.friction_coefficient,
-                               scenario.contact.friction_coefficient)
-    body = add_object(plant, obj, friction)
-    plant.RegisterCollisionGeometry(plant.world_body(), RigidTransform(),
-                                    HalfSpace(), "ground", friction)
-    plant.Finalize()
-    robot.exclude_robot_self_collisions(plant, scene_graph)
+    plant, _, instances, body, _ = add_world(builder, scenario, obj)
     q0 = np.array(scenario.throw.knot_q_rad[0])
     controller = builder.AddSystem(InverseDynamicsController(
         robot.make_arm_control_plant(), scenario.arm.kp, scenario.arm.ki,

@@ -85,28 +85,9 @@ def build_station(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
             X_WG is None or scenario.catch.parameter_source == "fixed"):
         catch_parameters = (scenario.catch.h_catch_m, scenario.catch.h_down_m)
     builder = DiagramBuilder()
-    # Plant and scene graph: discrete, point contact, no air drag.
-    plant, scene_graph = AddMultibodyPlant(MultibodyPlantConfig(
-        time_step=scenario.time_step_s, contact_model="point",
-        discrete_contact_approximation=(
-            scenario.contact.discrete_contact_approximation)), builder)
-    # PUMA + hand welded to the world, the object a free body, the ground.
-    instances = robot.add_puma_and_hand(plant)
-    friction = CoulombFriction(scenario.contact.friction_coefficient,
-                               scenario.contact.friction_coefficient)
-    object_body = add_object(plant, obj, friction)
-    plant.RegisterCollisionGeometry(
-        plant.world_body(), RigidTransform(), HalfSpace(), "ground", friction)
-    # Meshcat does not draw half spaces: the ground is drawn as a slab.
-    plant.RegisterVisualGeometry(
-        plant.world_body(), RigidTransform([0.0, 0.0, -0.01]),
-        Box(4.0, 4.0, 0.02), "ground", [0.55, 0.55, 0.5, 1.0])
-    plant.mutable_gravity_field().set_gravity_vector(
-        [0.0, 0.0, -scenario.gravity_m_per_s2])
-    plant.Finalize()
-    robot.exclude_robot_self_collisions(plant, scene_graph)
-    object_geometries = _set_object_contact(plant, scene_graph, object_body,
-                                            scenario)
+    # The physics: PUMA + hand, the object, the ground (see add_world).
+    plant, scene_graph, instances, object_body, object_geometries = (
+        add_world(builder, scenario, obj))
 
     # The arm: inverse dynamics on its own arm-only plant; the plant clamps
     # the torques to the servos' effort limits.
@@ -214,6 +195,35 @@ def build_station(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
                    arm=instances.arm, hand=instances.hand,
                    state_machine=machine, monitor=monitor, loggers=loggers,
                    X_WO_initial=X_WO, meshcat=meshcat)
+
+
+def add_world(builder: DiagramBuilder, scenario: Scenario, obj: ObjectSpec):
+    """Adds the physics to `builder`: a discrete MultibodyPlant (point
+    contact, no air drag) with PUMA + hand welded to the world, the object a
+    free body with the scenario's contact properties, the ground, gravity;
+    finalized, robot self-collisions filtered. Returns (plant, scene_graph,
+    robot instances, object body, the object's collision geometry ids)."""
+    plant, scene_graph = AddMultibodyPlant(MultibodyPlantConfig(
+        time_step=scenario.time_step_s, contact_model="point",
+        discrete_contact_approximation=(
+            scenario.contact.discrete_contact_approximation)), builder)
+    instances = robot.add_puma_and_hand(plant)
+    friction = CoulombFriction(scenario.contact.friction_coefficient,
+                               scenario.contact.friction_coefficient)
+    object_body = add_object(plant, obj, friction)
+    plant.RegisterCollisionGeometry(
+        plant.world_body(), RigidTransform(), HalfSpace(), "ground", friction)
+    # Meshcat does not draw half spaces: the ground is drawn as a slab.
+    plant.RegisterVisualGeometry(
+        plant.world_body(), RigidTransform([0.0, 0.0, -0.01]),
+        Box(4.0, 4.0, 0.02), "ground", [0.55, 0.55, 0.5, 1.0])
+    plant.mutable_gravity_field().set_gravity_vector(
+        [0.0, 0.0, -scenario.gravity_m_per_s2])
+    plant.Finalize()
+    robot.exclude_robot_self_collisions(plant, scene_graph)
+    object_geometries = _set_object_contact(plant, scene_graph, object_body,
+                                            scenario)
+    return plant, scene_graph, instances, object_body, object_geometries
 
 
 def _set_object_contact(plant, scene_graph, object_body, scenario):
