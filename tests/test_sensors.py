@@ -335,6 +335,48 @@ class RayEntryTest(unittest.TestCase):
             self.assertGreater(hits, 10, name)  # the comparison saw the shape
             self.assertGreater(misses, 10, name)
 
+    def test_target_bound_changes_no_reading(self):
+        """The station's early-out (rays that cannot reach the object's
+        bounding sphere about its frame origin read nothing, uncomputed)
+        gives the readings of casting every ray, for an L-shaped object in
+        random poses around the palm."""
+        from regrasp_drake.planning.ik import ArmIk
+        from regrasp_drake.station.scenario import load_scenario
+        from regrasp_drake.station.station import build_station
+        from regrasp_drake.world.objects import resolve_object
+        scenario = load_scenario()
+        obj = resolve_object(name="table1-row4")
+        station = build_station(scenario, obj, ik=ArmIk(), X_WG=None)
+        plant = station.plant
+        scene_graph = station.diagram.GetSubsystemByName("scene_graph")
+        bounded = station.diagram.GetSubsystemByName("infrared")
+        unbounded = InfraredSensors(
+            plant, [plant.GetFrameByName(f"ir{i}", station.hand)
+                    for i in range(1, 14)],
+            list(plant.GetCollisionGeometriesForBody(station.object_body)),
+            bounded.ranges_m(), period_s=scenario.sensors.period_s,
+            levels=bounded.levels(), inspector=scene_graph.model_inspector())
+        context = station.diagram.CreateDefaultContext()
+        plant_context = plant.GetMyMutableContextFromRoot(context)
+        X_WP = plant.GetFrameByName("palm_surface", station.hand).CalcPoseInWorld(
+            plant_context)
+        rng = np.random.default_rng(11)
+        seen = 0
+        for _ in range(60):
+            # Over the palm, 2-40 cm along its normal, 8 cm either side.
+            p_PO = [rng.uniform(-0.08, 0.08), rng.uniform(-0.08, 0.08),
+                    rng.uniform(0.02, 0.4)]
+            plant.SetFreeBodyPose(plant_context, station.object_body,
+                                  RigidTransform(
+                                      RollPitchYaw(rng.uniform(-np.pi, np.pi, 3)),
+                                      X_WP @ np.array(p_PO)))
+            query = scene_graph.get_query_output_port().Eval(
+                scene_graph.GetMyContextFromRoot(context))
+            read = bounded.read_levels(query)
+            np.testing.assert_array_equal(read, unbounded.read_levels(query))
+            seen += int(np.sum(read < bounded.levels()))
+        self.assertGreater(seen, 60)  # the sensors did see the object
+
 
 class TactileBumperTest(unittest.TestCase):
     def test_sphere_dropped_on_bumper(self):
