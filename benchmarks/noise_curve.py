@@ -148,6 +148,9 @@ def main() -> int:
                 "release_time_std_ms": level * RELEASE_STD_PER_LEVEL_S * 1e3,
                 "joint_velocity_std_rad_per_s": level * JOINT_DV_STD_PER_LEVEL,
                 "trials": len(rows), "caught": caught,
+                "objects": len({k[1] for k in done if k[0] == mode
+                                and k[2] == level and k[1] in args.objects
+                                and k[1] in learned[mode]}),
                 "catch_rate": caught / len(rows) if rows else None})
     summary = {"objects": args.objects, "trials_per_object": args.trials,
                "curves": curves}
@@ -165,8 +168,10 @@ def _plot(curves, path):
     for mode, points in curves.items():
         if not any(p["trials"] for p in points):
             continue
+        objects = max(p["objects"] for p in points)
         ax.plot([p["release_time_std_ms"] for p in points],
-                [p["catch_rate"] for p in points], "o-", label=mode)
+                [p["catch_rate"] for p in points], "o-",
+                label=f"{mode} ({objects} objects)")
     ax.set_xlabel("release time std (ms); joint velocity std = 15 × that "
                   "(mrad/s)", fontsize=8)
     ax.set_ylabel("catch rate")
