@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from regrasp_drake.errors import InputError
 from regrasp_drake.learning.dataset import (
     SHAPE,
     generate,
@@ -73,12 +74,16 @@ class SplitTest(unittest.TestCase):
 def _rows(out: Path) -> dict:
     """Every object's cells, without wall times (the only thing that may
     differ between runs)."""
+    return {(name, cell): row for name in OBJECTS
+            for cell, row in _rows_of(out, name).items()}
+
+
+def _rows_of(out: Path, entry: str) -> dict:
     rows = {}
-    for name in OBJECTS:
-        for line in (out / "cells" / f"{name}.jsonl").read_text().splitlines():
-            row = json.loads(line)
-            row.pop("wall_s")
-            rows[(name, tuple(row["cell"]))] = row
+    for line in (out / "cells" / f"{entry}.jsonl").read_text().splitlines():
+        row = json.loads(line)
+        row.pop("wall_s")
+        rows[tuple(row["cell"])] = row
     return rows
 
 
@@ -116,6 +121,32 @@ class GenerateTest(unittest.TestCase):
         provenance = json.loads((out / "provenance.json").read_text())
         self.assertIn("time_step_s", provenance["scenario"])
         self.assertEqual(len(provenance["catalogue_sha256"]), 64)
+
+    def test_two_catch_points_per_object(self):
+        """--catch-points 2: a second entry per object, planned at another
+        moment of the same watched flight (at least the separation later or
+        earlier), with its own map; its first entry is the one-point set's."""
+        from regrasp_drake.learning.dataset import CATCH_POINT_SEPARATION_S
+        out = self.root / "points"
+        provenance = generate(OBJECTS[:1], out, workers=1, only=COARSE,
+                              progress=False, catch_points=2)
+        self.assertEqual((provenance["objects"], provenance["entries"],
+                          provenance["catch_points_per_object"]), (1, 2, 2))
+        name = OBJECTS[0]
+        first = json.loads((out / "plans" / f"{name}.json").read_text())
+        second = json.loads((out / "plans" / f"{name}@2.json").read_text())
+        self.assertEqual((first["catch_point"], second["catch_point"]), (1, 2))
+        self.assertGreaterEqual(
+            abs(first["plan"]["catch_point"]["t_s"]
+                - second["plan"]["catch_point"]["t_s"]),
+            CATCH_POINT_SEPARATION_S - 1e-9)
+        self.assertNotEqual(first["features"]["v_catch"],
+                            second["features"]["v_catch"])
+        self.assertEqual(first["free_flight"], second["free_flight"])
+        self.assertEqual(_rows_of(out, name), _rows_of(self.root / "serial", name))
+        self.assertEqual(len(_rows_of(out, f"{name}@2")), len(COARSE))
+        with self.assertRaises(InputError):
+            generate(OBJECTS[:1], out, catch_points=0, progress=False)
 
     def test_train_and_predict(self):
         """The tiny set trains, and the saved network predicts inside the
