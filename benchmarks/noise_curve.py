@@ -17,8 +17,9 @@ noise (the regrasp library files that `regrasp-drake table1` and
   watch-then-catch: a noisy watching throw, the catch planned from it, then
       a noisy catching throw (a different perturbation) with those
       parameters;
-  first-throw: the catch planned from the flight predictor (no watch), then
-      one noisy catching throw.
+  first-throw: no watching throw: one noisy catching throw at the plan the
+      first-throw learning phase stored (the predicted flight's, or, when
+      its catch failed, the plan from what was seen of that throw).
 Writes <out>.jsonl (one line per trial, as it finishes; a rerun resumes),
 <out>.json (catch rate per mode and level) and <out>.png (the curves).
 """

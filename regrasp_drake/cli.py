@@ -184,7 +184,7 @@ def _cmd_learn(args) -> int:
         replay.save(args.html)
     if args.plot:
         from regrasp_drake.learning.plots import plot_search
-        plot_search(result.attempts, result.start_cell, args.plot,
+        plot_search(result.search_attempts, result.start_cell, args.plot,
                     title=f"{obj.name}: {result.throws} throws, "
                           f"{'caught' if result.caught else 'not caught'}")
     summary = result.as_dict() | {

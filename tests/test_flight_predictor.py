@@ -18,7 +18,7 @@ from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.mlp_system import load_weights
 from regrasp_drake.station.scenario import load_scenario
-from regrasp_drake.throw_catch import plan_catch
+from regrasp_drake.throw_catch import plan_catch, seen_flight, watch
 from regrasp_drake.world.objects import load_catalogue
 
 SHIPPED = MODELS_DIR / "flight_predictor.json"
@@ -126,7 +126,8 @@ class PredictorTest(unittest.TestCase):
 class FirstThrowModeTest(unittest.TestCase):
     """First-throw mode on one test object: no watching throw; the first
     throw is a catch attempt at the network's cell on the predicted flight's
-    plan, and when it fails the search goes on, the throws counted."""
+    plan; when it fails, the catch is planned again from what was seen of
+    that throw's flight, and the search goes on, the throws counted."""
 
     @classmethod
     def setUpClass(cls):
@@ -135,23 +136,50 @@ class FirstThrowModeTest(unittest.TestCase):
         cls.ik = ArmIk()
         cls.predictor = FlightPredictor.load(SHIPPED)
         cls.model, _ = load_weights(MODELS_DIR / "catch_mlp.pt")
+        cls.episodes = []
         cls.result = learn(cls.scenario, cls.obj, cls.model, ik=cls.ik,
                            flight_predictor=cls.predictor, max_throws=2,
-                           progress=None)
+                           progress=None, on_episode=cls.episodes.append)
+        cls.watched = watch(cls.scenario, cls.obj, cls.ik)
 
     def test_no_watching_throw(self):
         self.assertIsNone(self.result.watched)
+        self.assertTrue(self.result.first_throw)
         self.assertEqual(self.result.attempts[0].throw, 1)
-        self.assertEqual(self.result.attempts[0].cell, self.result.start_cell)
+        self.assertEqual(len(self.episodes), self.result.throws)
 
-    def test_plan_is_the_predicted_flights(self):
+    def test_first_plan_is_the_predicted_flights(self):
         plan = plan_catch(self.scenario, self.obj, self.ik,
                           self.predictor.as_watched(self.obj, self.scenario))
-        self.assertEqual(self.result.plan.catch_point.t_s, plan.catch_point.t_s)
-        np.testing.assert_array_equal(self.result.plan.X_WG.GetAsMatrix4(),
+        first = self.result.first_plan or self.result.plan
+        self.assertEqual(first.catch_point.t_s, plan.catch_point.t_s)
+        np.testing.assert_array_equal(first.X_WG.GetAsMatrix4(),
                                       plan.X_WG.GetAsMatrix4())
 
-    def test_caught_on_throw_one_or_search_counted(self):
+    def test_caught_on_throw_one_or_replanned_from_what_was_seen(self):
+        r = self.result
+        if r.attempts[0].outcome == "caught":
+            self.assertEqual(r.throws, 1)
+            self.assertIsNone(r.replanned)
+            return
+        self.assertEqual(r.replanned["after_throw"], 1)
+        self.assertEqual(r.replanned["from"], "seen flight")
+        # What was seen of throw 1 is the watching throw's flight, sample for
+        # sample, until the hand touched the object (before the flight ends).
+        seen = seen_flight(self.scenario, self.obj, self.episodes[0])
+        n = seen.logs.t.size
+        self.assertLess(n, self.watched.logs.t.size)
+        self.assertAlmostEqual(seen.logs.t[-1], r.replanned["seen_until_s"])
+        np.testing.assert_array_equal(seen.logs.object_state,
+                                      self.watched.logs.object_state[:, :n])
+        # Here it holds the watching throw's catch point: the same plan.
+        plan = plan_catch(self.scenario, self.obj, self.ik, self.watched)
+        np.testing.assert_array_equal(r.plan.X_WG.GetAsMatrix4(),
+                                      plan.X_WG.GetAsMatrix4())
+        self.assertEqual(r.attempts[1].cell, r.start_cell)
+        self.assertEqual(r.search_attempts, r.attempts[1:])
+
+    def test_throws_counted(self):
         r = self.result
         self.assertEqual(r.throws, len(r.attempts))
         self.assertEqual([a.throw for a in r.attempts],
@@ -167,6 +195,21 @@ class FirstThrowModeTest(unittest.TestCase):
             self.assertNotIn("caught", outcomes)
         self.assertAlmostEqual(r.sim_time_s,
                                sum(a.sim_time_s for a in r.attempts), places=9)
+
+
+class SeenFlightTest(unittest.TestCase):
+    """`seen_flight` keeps a watched flight whole until the object lands."""
+
+    def test_watching_throw_seen_to_the_end(self):
+        scenario = load_scenario()
+        obj = load_catalogue()["table1-row1"]
+        watched = watch(scenario, obj, ArmIk())
+        seen = seen_flight(scenario, obj, watched)
+        # The watching throw ends when the object lands; up to that sample
+        # nothing touched it after the throw.
+        self.assertEqual(seen.logs.t.size, watched.logs.t.size)
+        np.testing.assert_array_equal(seen.logs.object_state,
+                                      watched.logs.object_state)
 
 
 if __name__ == "__main__":

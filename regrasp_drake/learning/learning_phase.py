@@ -18,7 +18,13 @@ reported beside the cell.
 
 First-throw mode (the paper's future work, §VII): with a flight predictor,
 there is no watching throw; the offline stage plans from the predicted
-flight, and throw 1 already catches (then the search goes on as usual).
+flight, and throw 1 already tries to catch. A throw that fails is still
+seen: until the hand first touches the object, its flight is the watching
+throw's (throws repeat exactly), so the catch is planned again from what was
+seen of it (`throw_catch.seen_flight`) and the network and the search start
+again from that plan. If the seen flight ends before any reachable catch
+point, the next throw watches. So first-throw mode costs at most one throw
+more than watching first, and none when the seen flight holds the plan.
 
 Applying: one throw with the stored grasp pose and parameters.
 """
@@ -44,7 +50,7 @@ from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.episode import EpisodeResult, run_episode
 from regrasp_drake.station.mlp_system import FEATURE_NAMES, CatchMlp, ParameterSpace
 from regrasp_drake.station.scenario import H_CATCH_RANGE, Scenario
-from regrasp_drake.throw_catch import CatchPlan, plan_catch, watch
+from regrasp_drake.throw_catch import CatchPlan, plan_catch, seen_flight, watch
 from regrasp_drake.world.objects import ObjectSpec
 
 
@@ -153,11 +159,11 @@ class Attempt:
 class LearningResult:
     object: str
     caught: bool
-    stopped: str        # caught | exhausted | max_throws
+    stopped: str        # caught | exhausted | max_throws | no_catch_point
     throws: int         # every throw, the watching throw included
     sim_time_s: float   # simulated time of every throw, [s]
     wall_s: float       # wall time of the whole phase, [s]
-    watched: EpisodeResult | None  # None in first-throw mode
+    watched: EpisodeResult | None  # the watching throw, if one was made
     plan: CatchPlan
     features: list      # the network's inputs (FEATURE_NAMES order)
     raw_prediction: list    # the network's output (h_catch, h_down), [m]
@@ -165,6 +171,17 @@ class LearningResult:
     start_cell: tuple
     attempts: list[Attempt]
     learned: lib.LearnedEntry | None
+    first_throw: bool = False  # planned from the predicted flight first
+    # First-throw mode: when and from what the catch was planned again
+    # (after_throw, from: "seen flight" | "watching throw"), or None.
+    replanned: dict | None = None
+    first_plan: CatchPlan | None = None  # the predicted flight's, if replaced
+
+    @property
+    def search_attempts(self) -> list[Attempt]:
+        """The attempts at the final plan (its search from start_cell)."""
+        after = (self.replanned or {}).get("after_throw", 0)
+        return [a for a in self.attempts if a.throw > after]
 
     def as_dict(self) -> dict:
         return {
@@ -174,7 +191,10 @@ class LearningResult:
             "wall_s": round(self.wall_s, 3),
             "watch": (None if self.watched is None
                       else _episode_dict(self.watched)),
-            "first_throw": self.watched is None,
+            "first_throw": self.first_throw,
+            "replanned": self.replanned,
+            "first_plan": (None if self.first_plan is None
+                           else _plan_dict(self.first_plan)),
             "plan": _plan_dict(self.plan),
             "features": dict(zip(FEATURE_NAMES, self.features)),
             "prediction": {"raw": [round(x, 5) for x in self.raw_prediction],
@@ -222,29 +242,47 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
 
     # Throw 1 watches (or, in first-throw mode, the flight is predicted); the
     # offline stage plans the catch and the network predicts its parameters.
+    watched, throws, replanned = None, 0, None
+    plan = None
     if first_throw:
-        watched = None
-        plan = plan_catch(scenario, obj, ik,
-                          flight_predictor.as_watched(obj, scenario))
-        report("no watching throw: the catch is planned from the predicted "
-               "flight")
-    else:
+        try:
+            plan = plan_catch(scenario, obj, ik,
+                              flight_predictor.as_watched(obj, scenario))
+            report("no watching throw: the catch is planned from the "
+                   "predicted flight")
+        except InputError as e:
+            report(f"the predicted flight has no reachable catch point ({e});"
+                   " throw 1 watches")
+            replanned = {"after_throw": 0, "from": "watching throw"}
+    if plan is None:
         watched = watch(scenario, obj, ik, meshcat=meshcat)
+        throws = 1
         if on_episode is not None:
             on_episode(watched)
         report(f"throw 1 (watch): {watched.outcome}, {watched.sim_time_s:.2f}"
                f" s simulated, {watched.wall_s:.1f} s wall")
         plan = plan_catch(scenario, obj, ik, watched)
-    features = network_features(obj, plan.catch_point)
-    raw, prediction = predict(model, features)
-    start = nearest_cell(*prediction)
-    report(f"catch point at t = {plan.catch_point.t_s:.3f} s, v_catch "
-           f"{plan.catch_point.v_catch:.3f} m/s; network: h_catch "
-           f"{raw[0]:.3f} m, h_down {raw[1]:.3f} m -> start cell {start}")
+    predicted_plan = first_throw and replanned is None
 
-    # Throw 2 catches at the predicted cell; the wavefront search goes on.
-    attempts, throws, stopped = [], 0 if first_throw else 1, "exhausted"
-    for cell in wavefront_order(start):
+    def start_search(plan):
+        features = network_features(obj, plan.catch_point)
+        raw, prediction = predict(model, features)
+        start = nearest_cell(*prediction)
+        report(f"catch point at t = {plan.catch_point.t_s:.3f} s, v_catch "
+               f"{plan.catch_point.v_catch:.3f} m/s; network: h_catch "
+               f"{raw[0]:.3f} m, h_down {raw[1]:.3f} m -> start cell {start}")
+        return features, raw, prediction, start, iter(wavefront_order(start))
+
+    features, raw, prediction, start, order = start_search(plan)
+    first_plan = plan
+
+    # The next throw catches at the predicted cell; the wavefront search goes
+    # on. In first-throw mode, a failed catch from the predicted plan was
+    # still watched: the search starts again from the plan of what was seen
+    # of its flight (`throw_catch.seen_flight`), or, if that shows no
+    # reachable catch point, from a watching throw.
+    attempts, stopped = [], "exhausted"
+    while (cell := next(order, None)) is not None:
         if max_throws is not None and throws >= max_throws:
             stopped = "max_throws"
             break
@@ -265,6 +303,38 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
         if result.caught:
             stopped = "caught"
             break
+        if not predicted_plan:
+            continue
+        predicted_plan = False
+        try:
+            seen = seen_flight(scenario, obj, result)
+            new_plan = plan_catch(scenario, obj, ik, seen)
+            replanned = {"after_throw": throws, "from": "seen flight",
+                         "seen_until_s": round(float(seen.logs.t[-1]), 4)}
+            report(f"replanned from the flight seen until t = "
+                   f"{seen.logs.t[-1]:.3f} s")
+        except InputError as e:
+            if max_throws is not None and throws >= max_throws:
+                stopped = "max_throws"
+                break
+            report(f"the flight seen in throw {throws} shows no reachable "
+                   f"catch point ({e}); throw {throws + 1} watches")
+            watched = watch(scenario, obj, ik, meshcat=meshcat)
+            throws += 1
+            if on_episode is not None:
+                on_episode(watched)
+            replanned = {"after_throw": throws - 1, "from": "watching throw"}
+            try:
+                new_plan = plan_catch(scenario, obj, ik, watched)
+            except InputError as e:  # the throws made are still counted
+                report(str(e))
+                replanned["error"] = str(e)
+                stopped = "no_catch_point"
+                break
+        if _same_pose(new_plan, plan):
+            continue  # the prediction's plan was right: the search goes on
+        plan = new_plan
+        features, raw, prediction, start, order = start_search(plan)
 
     learned = None
     if stopped == "caught":
@@ -290,7 +360,16 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
         + sum(a.sim_time_s for a in attempts),
         wall_s=time.perf_counter() - t0, watched=watched, plan=plan,
         features=features, raw_prediction=raw, prediction=prediction,
-        start_cell=start, attempts=attempts, learned=learned)
+        start_cell=start, attempts=attempts, learned=learned,
+        first_throw=first_throw, replanned=replanned,
+        first_plan=None if first_plan is plan else first_plan)
+
+
+def _same_pose(a: CatchPlan, b: CatchPlan) -> bool:
+    """Whether two plans put the palm in the same place (within 1 mm and
+    1 mrad) at the same moment."""
+    return (abs(a.catch_point.t_s - b.catch_point.t_s) < 1e-9
+            and a.X_WG.IsNearlyEqualTo(b.X_WG, 1e-3))
 
 
 # ---- the applying phase -------------------------------------------------

@@ -62,6 +62,7 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
             "first_throw": flight_predictor is not None,
             "density": obj.d_obj, "h_cm": obj.h_cm, "r_cm": obj.r_cm,
             "caught": result.caught, "throws": result.throws,
+            "stopped": result.stopped, "replanned": result.replanned,
             "sim_time_s": round(result.sim_time_s, 2),
             "wall_s": round(result.wall_s, 1),
             "start_cell": list(result.start_cell),
@@ -80,7 +81,7 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
                                  progress=progress is not None)
             entry["cells_caught"] = sum(r["outcome"] == "caught"
                                         for r in cells.values())
-            png = plot_search(result.attempts, result.start_cell,
+            png = plot_search(result.search_attempts, result.start_cell,
                               maps_dir / f"{obj.name}.png",
                               title=f"{obj.name}: {result.throws} throws, "
                                     f"{entry['cells_caught']}/150 cells catch",
