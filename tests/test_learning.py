@@ -22,9 +22,15 @@ from pydrake.math import RigidTransform
 
 from regrasp_drake.grid import nearest_cell
 from regrasp_drake.learning import run_replay
-from regrasp_drake.learning.learning_phase import learn, network_features, predict
+from regrasp_drake.learning.learning_phase import (
+    NoCatchPoint,
+    learn,
+    network_features,
+    predict,
+)
 from regrasp_drake.learning.library import load_library
 from regrasp_drake.learning.search import wavefront_order
+from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning.catch_plan import CatchPoint
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.mlp_system import (
@@ -251,6 +257,20 @@ class TestRunReplay(unittest.TestCase):
         data += bytes([0xA1, 0x63, 0xCD, 0x01, 0x00])
         self.assertEqual(run_replay.unpack(data),
                          {"a": True, "b": [1.5, -1], "c": 256})
+
+
+class NoCatchPointTest(unittest.TestCase):
+    def test_watch_without_catch_point_counts_its_throw(self):
+        """holdout-scraper-d180's watched flight has no reachable catch
+        point: the learning phase stops, with the watching throw counted."""
+        scenario = load_scenario()
+        model, _ = load_weights(MODELS_DIR / "catch_mlp.pt")
+        with self.assertRaises(NoCatchPoint) as e:
+            learn(scenario, load_catalogue()["holdout-scraper-d180"], model,
+                  progress=None)
+        self.assertEqual(e.exception.throws, 1)
+        self.assertGreater(e.exception.sim_time_s, 0.5)
+        self.assertIn("no reachable catch point", str(e.exception))
 
 
 if __name__ == "__main__":

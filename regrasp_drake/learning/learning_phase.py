@@ -136,6 +136,18 @@ def predict(model: CatchMlp, features) -> tuple[list[float], tuple]:
 
 
 # ---- the learning phase -------------------------------------------------
+class NoCatchPoint(InputError):
+    """The watching throw shows no reachable catch point: the learning phase
+    cannot go on. Carries the throws made (the watch) and their time."""
+
+    def __init__(self, message: str, *, throws: int, sim_time_s: float,
+                 wall_s: float):
+        super().__init__(message)
+        self.throws = throws
+        self.sim_time_s = sim_time_s
+        self.wall_s = wall_s
+
+
 @dc.dataclass
 class Attempt:
     throw: int          # the throw's number in the run (the watch is 1)
@@ -261,7 +273,12 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
             on_episode(watched)
         report(f"throw 1 (watch): {watched.outcome}, {watched.sim_time_s:.2f}"
                f" s simulated, {watched.wall_s:.1f} s wall")
-        plan = plan_catch(scenario, obj, ik, watched)
+        try:
+            plan = plan_catch(scenario, obj, ik, watched)
+        except InputError as e:
+            raise NoCatchPoint(str(e), throws=1,
+                               sim_time_s=watched.sim_time_s,
+                               wall_s=time.perf_counter() - t0) from None
     predicted_plan = first_throw and replanned is None
 
     def start_search(plan):

@@ -5,8 +5,6 @@ import json
 import sys
 from pathlib import Path
 
-from regrasp_drake.errors import InputError
-
 # Table 1 of the paper: row, object ID, density (kg/m³), centre of mass
 # (x, y, z in the object frame, m), time (s), number of trials.
 PAPER_TABLE1 = [
@@ -28,9 +26,12 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
     with the network's start cell and the search path. flight_predictor:
     the first-throw mode (no watching throw)."""
     from regrasp_drake import grid
-    from regrasp_drake.learning.learning_phase import learn
+    from regrasp_drake.learning.learning_phase import NoCatchPoint, learn
+    from regrasp_drake.learning.library import load_library
     from regrasp_drake.learning.plots import plot_search
     from regrasp_drake.world.objects import resolve_object
+    if library_path is not None:
+        load_library(library_path)  # a malformed file: refused before any throw
     rows = []
     paper = PAPER_TABLE1
     if objects:
@@ -44,13 +45,15 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
                            library_path=library_path, progress=progress,
                            flight_predictor=flight_predictor,
                            max_throws=max_throws)
-        except InputError as e:  # no reachable catch point: no throw made
+        except NoCatchPoint as e:  # the watching throw shows no catch point
             rows.append({"row": row, "object": obj.name,
                          "paper_object_id": obj_id,
                          "first_throw": flight_predictor is not None,
                          "density": obj.d_obj, "h_cm": obj.h_cm,
-                         "r_cm": obj.r_cm, "caught": False, "throws": 0,
-                         "sim_time_s": 0.0, "wall_s": 0.0, "error": str(e),
+                         "r_cm": obj.r_cm, "caught": False,
+                         "throws": e.throws, "stopped": "no_catch_point",
+                         "sim_time_s": round(e.sim_time_s, 2),
+                         "wall_s": round(e.wall_s, 1), "error": str(e),
                          "paper": None if obj_id is None else {
                              "density": density, "com": list(com),
                              "time_s": time_s, "trials": trials}})
