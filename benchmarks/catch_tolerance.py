@@ -77,6 +77,10 @@ def _offset_throw(task):
             "outcome": result.outcome, "message": result.message}
 
 
+def _key(row) -> tuple:
+    return row["object"], row["dx_mm"], row["dy_mm"]
+
+
 def predictor_offset(name, library) -> dict:
     """The palm planned from the predicted flight, relative to the palm
     planned from the watched flight, in the latter's frame (mm, degrees)."""
@@ -138,15 +142,9 @@ def main() -> int:
                   file=sys.stderr)
             return 2
     offsets = range(-args.reach_mm, args.reach_mm + 1, args.step_mm)
+    from regrasp_drake.grid import print_progress, read_rows
     lines = args.out.with_suffix(".jsonl")
-    done = {}
-    if lines.exists():
-        for line in lines.read_text().splitlines():
-            try:
-                row = json.loads(line)
-            except json.JSONDecodeError:
-                continue  # a line cut by a kill: redone
-            done[(row["object"], row["dx_mm"], row["dy_mm"])] = row
+    done = read_rows(lines, key=_key)
     tasks = [(name, library[name], dx, dy) for name in args.objects
              for dx in offsets for dy in offsets
              if (name, dx, dy) not in done]
@@ -156,11 +154,8 @@ def main() -> int:
         for n, row in enumerate(pool.imap(_offset_throw, tasks), 1):
             f.write(json.dumps(row) + "\n")
             f.flush()
-            done[(row["object"], row["dx_mm"], row["dy_mm"])] = row
-            rate = n / (time.perf_counter() - start)
-            print(f"\r{n}/{len(tasks)} throws, {rate * 60:.1f}/min, "
-                  f"{(len(tasks) - n) / rate / 60:.1f} min left   ",
-                  end="", file=sys.stderr, flush=True)
+            done[_key(row)] = row
+            print_progress(n, len(tasks), start, "catch tolerance", "throws")
     print(file=sys.stderr)
     summary = {"step_mm": args.step_mm, "reach_mm": args.reach_mm,
                "objects": {}}

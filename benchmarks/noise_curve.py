@@ -45,6 +45,10 @@ def _scenario(level, trial):
     return dc.replace(scenario, throw=dc.replace(scenario.throw, noise=noise))
 
 
+def _key(row) -> tuple:
+    return row["mode"], row["object"], row["level"], row["trial"]
+
+
 def _trial(task):
     mode, name, level, trial, library = task
     import torch
@@ -110,15 +114,9 @@ def main() -> int:
               "learned for any object (run `regrasp-drake table1 --library F` "
               "first)", file=sys.stderr)
         return 2
+    from regrasp_drake.grid import print_progress, read_rows
     lines = args.out.with_suffix(".jsonl")
-    done = {}
-    if lines.exists():
-        for line in lines.read_text().splitlines():
-            try:
-                row = json.loads(line)
-            except json.JSONDecodeError:
-                continue
-            done[(row["mode"], row["object"], row["level"], row["trial"])] = row
+    done = read_rows(lines, key=_key)
     tasks = [(mode, name, level, trial, str(libraries[mode]))
              for mode in libraries for level in args.levels
              for name in args.objects for trial in range(args.trials)
@@ -130,11 +128,8 @@ def main() -> int:
         for n, row in enumerate(pool.imap_unordered(_trial, tasks), 1):
             f.write(json.dumps(row) + "\n")
             f.flush()
-            done[(row["mode"], row["object"], row["level"], row["trial"])] = row
-            rate = n / (time.perf_counter() - start)
-            print(f"\r{n}/{len(tasks)} trials, {rate * 60:.1f}/min, "
-                  f"{(len(tasks) - n) / rate / 60:.1f} min left   ",
-                  end="", file=sys.stderr, flush=True)
+            done[_key(row)] = row
+            print_progress(n, len(tasks), start, "noise curve", "trials")
     print(file=sys.stderr)
     curves = {}
     for mode in libraries:

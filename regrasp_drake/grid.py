@@ -48,15 +48,15 @@ def plan_object(scenario, obj, ik):
     return plan_catch(scenario, obj, ik, watch(scenario, obj, ik))
 
 
-def read_rows(path: Path) -> dict:
-    """{cell: row} from a JSON-lines file; a line cut by a kill is skipped
-    (its cell runs again)."""
+def read_rows(path: Path, key=lambda row: tuple(row["cell"])) -> dict:
+    """{key(row): row} from a JSON-lines file (by default keyed by cell); a
+    line cut by a kill is skipped (its work runs again)."""
     done = {}
     if path.exists():
         for line in path.read_text().splitlines():
             try:
                 row = json.loads(line)
-                done[tuple(row["cell"])] = row
+                done[key(row)] = row
             except (json.JSONDecodeError, KeyError, TypeError):
                 continue
     return done
