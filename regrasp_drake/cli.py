@@ -155,6 +155,16 @@ def _add_first_throw_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--flight-model", type=Path, metavar="F",
                    help="the flight predictor (default "
                         "models/flight_predictor.json)")
+    p.add_argument("--at-release", action="store_true",
+                   help="no watching throw: each throw plans its catch when "
+                        "it releases the object, from the object's state "
+                        "seen then (not with --first-throw)")
+
+
+def _check_first_throw_args(args) -> None:
+    if args.first_throw and args.at_release:
+        raise InputError("--at-release: got it with --first-throw, expected "
+                         "one of the two first-throw modes")
 
 
 def _replay(path):
@@ -170,6 +180,7 @@ def _cmd_learn(args) -> int:
 
     from regrasp_drake.learning.learning_phase import learn
     torch.set_num_threads(1)
+    _check_first_throw_args(args)
     scenario, obj, source, label = _scenario_and_object(args)
     model = _load_network(args, scenario)
     replay = _replay(args.html)
@@ -177,6 +188,7 @@ def _cmd_learn(args) -> int:
                    scenario_label=label, object_source=source,
                    max_throws=args.max_throws,
                    flight_predictor=_flight_predictor(args),
+                   at_release=args.at_release,
                    meshcat=replay.meshcat if replay else None,
                    on_episode=(lambda r: replay.add_episode(r.sim_time_s))
                    if replay else None)
@@ -268,7 +280,8 @@ def _cmd_table1(args) -> int:
     from regrasp_drake.planning.ik import ArmIk
     from regrasp_drake.station.scenario import load_scenario
     torch.set_num_threads(1)
-    least = 1 if args.first_throw else 2
+    _check_first_throw_args(args)
+    least = 1 if args.first_throw or args.at_release else 2
     if args.max_throws is not None and args.max_throws < least:
         raise InputError(f"--max-throws: got {args.max_throws}, expected an "
                          f"integer >= {least} (the watch, if any, and one "
@@ -278,7 +291,8 @@ def _cmd_table1(args) -> int:
     rows = run_table1(scenario, model, ik=ArmIk(), library_path=args.library,
                       maps_dir=None if args.no_maps else args.maps_dir,
                       flight_predictor=_flight_predictor(args),
-                      objects=args.objects, max_throws=args.max_throws)
+                      objects=args.objects, max_throws=args.max_throws,
+                      at_release=args.at_release)
     print(format_markdown(rows))
     write_outputs(rows, args.json, args.markdown)
     return 0

@@ -26,6 +26,14 @@ again from that plan. If the seen flight ends before any reachable catch
 point, the next throw watches. So first-throw mode costs at most one throw
 more than watching first, and none when the seen flight holds the plan.
 
+Planning at release (`at_release`, also a first-throw mode): no watching
+throw and no predicted flight; each catching throw plans its own catch when
+the throw ends and the object flies free, from the object's state seen then,
+propagated in free flight (`flight_predictor.flight_from_release`): what a
+robot that tracks the object leaving its hand can do. The network and the
+search start from throw 1's plan; a later throw keeps the search's cell and
+plans its pose from its own release (the same pose without release noise).
+
 Applying: one throw with the stored grasp pose and parameters.
 """
 
@@ -35,11 +43,13 @@ import time
 
 import numpy as np
 import torch
+from pydrake.math import RigidTransform
 
 from regrasp_drake import __version__
 from regrasp_drake.errors import InputError, field_error
 from regrasp_drake.grid import cell_parameters, nearest_cell
 from regrasp_drake.learning import library as lib
+from regrasp_drake.learning.flight_predictor import flight_from_release
 from regrasp_drake.learning.search import wavefront_order
 from regrasp_drake.planning.catch_plan import (
     CatchPoint,
@@ -47,7 +57,7 @@ from regrasp_drake.planning.catch_plan import (
     palm_poses_for,
 )
 from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.station.episode import EpisodeResult, run_episode
+from regrasp_drake.station.episode import EpisodeResult, release_time, run_episode
 from regrasp_drake.station.mlp_system import FEATURE_NAMES, CatchMlp, ParameterSpace
 from regrasp_drake.station.scenario import H_CATCH_RANGE, Scenario
 from regrasp_drake.throw_catch import CatchPlan, plan_catch, seen_flight, watch
@@ -188,6 +198,7 @@ class LearningResult:
     # (after_throw, from: "seen flight" | "watching throw"), or None.
     replanned: dict | None = None
     first_plan: CatchPlan | None = None  # the predicted flight's, if replaced
+    at_release: bool = False  # each throw planned when it released the object
 
     @property
     def search_attempts(self) -> list[Attempt]:
@@ -204,6 +215,7 @@ class LearningResult:
             "watch": (None if self.watched is None
                       else _episode_dict(self.watched)),
             "first_throw": self.first_throw,
+            "at_release": self.at_release,
             "replanned": self.replanned,
             "first_plan": (None if self.first_plan is None
                            else _plan_dict(self.first_plan)),
@@ -224,11 +236,13 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
           scenario_label: str = "defaults",
           object_source: str = "catalogue", max_throws: int | None = None,
           meshcat=None, on_episode=None, progress=sys.stderr,
-          flight_predictor=None) -> LearningResult:
+          flight_predictor=None, at_release: bool = False) -> LearningResult:
     """The learning phase on one object (see the module's docstring).
 
     flight_predictor: a learning.flight_predictor.FlightPredictor for the
-    first-throw mode (no watching throw), or None.
+    first-throw mode (no watching throw), or None. at_release: the
+    first-throw mode that plans each throw's catch at its release (no
+    flight predictor then).
 
     library_path: where the learned entry is stored when a throw catches
     (None: not stored). max_throws: stop after this many throws, the watch
@@ -236,7 +250,10 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
     meshcat: recorded by every throw; on_episode(result) is called after each
     (e.g. RunReplay.add_episode). progress: a stream that gets one line per
     throw (None: quiet)."""
-    first_throw = flight_predictor is not None
+    if at_release and flight_predictor is not None:
+        raise field_error("flight_predictor", "given",
+                          "none when planning at release")
+    first_throw = flight_predictor is not None or at_release
     if max_throws is not None and not (
             isinstance(max_throws, int) and max_throws >= 2 - first_throw):
         raise field_error("max_throws", max_throws,
@@ -256,7 +273,7 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
     # offline stage plans the catch and the network predicts its parameters.
     watched, throws, replanned = None, 0, None
     plan = None
-    if first_throw:
+    if flight_predictor is not None:
         try:
             plan = plan_catch(scenario, obj, ik,
                               flight_predictor.as_watched(obj, scenario))
@@ -266,7 +283,7 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
             report(f"the predicted flight has no reachable catch point ({e});"
                    " throw 1 watches")
             replanned = {"after_throw": 0, "from": "watching throw"}
-    if plan is None:
+    if plan is None and not at_release:
         watched = watch(scenario, obj, ik, meshcat=meshcat)
         throws = 1
         if on_episode is not None:
@@ -279,7 +296,7 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
             raise NoCatchPoint(str(e), throws=1,
                                sim_time_s=watched.sim_time_s,
                                wall_s=time.perf_counter() - t0) from None
-    predicted_plan = first_throw and replanned is None
+    predicted_plan = flight_predictor is not None and replanned is None
 
     def start_search(plan):
         features = network_features(obj, plan.catch_point)
@@ -290,24 +307,57 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
                f"{raw[0]:.3f} m, h_down {raw[1]:.3f} m -> start cell {start}")
         return features, raw, prediction, start, iter(wavefront_order(start))
 
-    features, raw, prediction, start, order = start_search(plan)
+    features = raw = prediction = start = order = None
+    if plan is not None:
+        features, raw, prediction, start, order = start_search(plan)
     first_plan = plan
+
+    def plan_at_release(state, t):
+        """at_release's hook (see run_episode): the plan of this throw from
+        its release; throw 1's plan starts the network and the search."""
+        nonlocal plan, features, raw, prediction, start, order, cell
+        plan = plan_catch(scenario, obj, ik,
+                          flight_from_release(state, t, obj, scenario))
+        if order is None:
+            report(f"planned at the release (t = {t:.3f} s)")
+            features, raw, prediction, start, order = start_search(plan)
+            cell = next(order)
+        return plan.X_WG, cell_parameters(cell)
 
     # The next throw catches at the predicted cell; the wavefront search goes
     # on. In first-throw mode, a failed catch from the predicted plan was
     # still watched: the search starts again from the plan of what was seen
     # of its flight (`throw_catch.seen_flight`), or, if that shows no
     # reachable catch point, from a watching throw.
-    attempts, stopped = [], "exhausted"
-    while (cell := next(order, None)) is not None:
+    attempts, stopped, unplanned_sim_s = [], "exhausted", 0.0
+    while True:
+        cell = None if order is None else next(order, None)
+        if order is not None and cell is None:
+            break
         if max_throws is not None and throws >= max_throws:
             stopped = "max_throws"
             break
-        h_catch, h_down = cell_parameters(cell)
-        result = run_episode(scenario, obj, ik=ik, X_WG=plan.X_WG,
-                             catch_parameters=(h_catch, h_down),
-                             meshcat=meshcat, throw_number=throws + 1)
+        try:
+            result = run_episode(
+                scenario, obj, ik=ik,
+                X_WG=RigidTransform() if at_release else plan.X_WG,
+                catch_parameters=(cell_parameters(cell) if cell is not None
+                                  else (0.0, 0.0)),
+                meshcat=meshcat, throw_number=throws + 1,
+                at_release=plan_at_release if at_release else None)
+        except InputError as e:  # nothing to catch: the throw still counts
+            throws += 1
+            unplanned_sim_s += release_time(scenario)
+            report(f"throw {throws}: no reachable catch point at the release"
+                   f" ({e})")
+            if plan is None:  # nothing planned: no search to report
+                raise NoCatchPoint(str(e), throws=throws,
+                                   sim_time_s=unplanned_sim_s,
+                                   wall_s=time.perf_counter() - t0) from None
+            stopped = "no_catch_point"
+            break
         throws += 1
+        h_catch, h_down = cell_parameters(cell)
         if on_episode is not None:
             on_episode(result)
         attempts.append(Attempt(throw=throws, cell=cell, h_catch=h_catch,
@@ -374,12 +424,13 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
         object=obj.name, caught=learned is not None, stopped=stopped,
         throws=throws,
         sim_time_s=(0.0 if watched is None else watched.sim_time_s)
-        + sum(a.sim_time_s for a in attempts),
+        + sum(a.sim_time_s for a in attempts) + unplanned_sim_s,
         wall_s=time.perf_counter() - t0, watched=watched, plan=plan,
         features=features, raw_prediction=raw, prediction=prediction,
         start_cell=start, attempts=attempts, learned=learned,
         first_throw=first_throw, replanned=replanned,
-        first_plan=None if first_plan is plan else first_plan)
+        first_plan=None if first_plan is plan else first_plan,
+        at_release=at_release)
 
 
 def _same_pose(a: CatchPlan, b: CatchPlan) -> bool:

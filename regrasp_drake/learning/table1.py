@@ -19,12 +19,13 @@ PAPER_TABLE1 = [
 def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
                map_workers: int = 2, progress=sys.stderr,
                flight_predictor=None, objects=None,
-               max_throws=None) -> list[dict]:
+               max_throws=None, at_release: bool = False) -> list[dict]:
     """Runs the learning phase on table1-row1 … row5 (or on `objects`, names
     of other catalogue objects); returns one row each. With maps_dir: also
     each object's full success map (resumable JSON lines) and a PNG of it
     with the network's start cell and the search path. flight_predictor:
-    the first-throw mode (no watching throw)."""
+    the first-throw mode (no watching throw); at_release: the first-throw
+    mode that plans each throw at its release."""
     from regrasp_drake import grid
     from regrasp_drake.learning.learning_phase import NoCatchPoint, learn
     from regrasp_drake.learning.library import load_library
@@ -33,6 +34,7 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
     if library_path is not None:
         load_library(library_path)  # a malformed file: refused before any throw
     rows = []
+    first_throw = flight_predictor is not None or at_release
     paper = PAPER_TABLE1
     if objects:
         paper = [(k + 1, None, None, None, None, None)
@@ -44,11 +46,12 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
             result = learn(scenario, obj, model, ik=ik,
                            library_path=library_path, progress=progress,
                            flight_predictor=flight_predictor,
-                           max_throws=max_throws)
+                           max_throws=max_throws, at_release=at_release)
         except NoCatchPoint as e:  # the watching throw shows no catch point
             rows.append({"row": row, "object": obj.name,
                          "paper_object_id": obj_id,
-                         "first_throw": flight_predictor is not None,
+                         "first_throw": first_throw,
+                         "at_release": at_release,
                          "density": obj.d_obj, "h_cm": obj.h_cm,
                          "r_cm": obj.r_cm, "caught": False,
                          "throws": e.throws, "stopped": "no_catch_point",
@@ -62,7 +65,7 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
             continue
         entry = {
             "row": row, "object": obj.name, "paper_object_id": obj_id,
-            "first_throw": flight_predictor is not None,
+            "first_throw": first_throw, "at_release": at_release,
             "density": obj.d_obj, "h_cm": obj.h_cm, "r_cm": obj.r_cm,
             "caught": result.caught, "throws": result.throws,
             "stopped": result.stopped, "replanned": result.replanned,

@@ -57,9 +57,18 @@ class EpisodeResult:
 def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
                 X_WG: RigidTransform | None, catch_parameters=None,
                 mlp_features=None, meshcat=None,
-                throw_number: int = 1) -> EpisodeResult:
+                throw_number: int = 1, at_release=None) -> EpisodeResult:
     """Throws `obj` and, unless X_WG is None (a watching throw), catches it.
-    throw_number seeds the release noise, if the scenario has any."""
+    throw_number seeds the release noise, if the scenario has any.
+
+    at_release: plans the catch while the object flies. Called once, when
+    the throw ends (`release_time`, before the state machine reads the grasp
+    pose), with the object's state then (13: quaternion wxyz, p_WO, w_WO,
+    v_WO) and the time; it returns the grasp pose X_WG and the catch
+    parameters (h_catch, h_down) that replace the ones given, or raises
+    InputError (no catch planned: the episode ends there and the error
+    propagates). Requires catch_parameters and an X_WG (any: it is
+    replaced)."""
     t0 = time.perf_counter()
     station = build_station(scenario, obj, ik=ik, X_WG=X_WG,
                             catch_parameters=catch_parameters,
@@ -69,6 +78,13 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
         meshcat.StartRecording(set_visualizations_while_recording=False)
     simulator = initialize(station, scenario)
     build_s = time.perf_counter() - t0
+    if at_release is not None:
+        try:
+            _plan_at_release(simulator, station, scenario, at_release)
+        except Exception:
+            if meshcat is not None:
+                meshcat.StopRecording()
+            raise
     message = advance_to_outcome(simulator, station, scenario)
     wall_s = time.perf_counter() - t0
     if meshcat is not None:
@@ -87,6 +103,37 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
         p_WO_final=station.plant.EvalBodyPoseInWorld(
             station.plant.GetMyContextFromRoot(context),
             station.object_body).translation().tolist())
+
+
+def release_time(scenario: Scenario) -> float:
+    """When the throw ends and the arm leaves for the grasp pose (the state
+    machine reads X_WG at its update then), on the sensors' sample grid, [s].
+    The object flies free from here (the flight predictor predicts its state
+    at this moment too)."""
+    period = scenario.sensors.period_s
+    t = scenario.throw.settle_s + scenario.throw.knot_times_s[-1]
+    return round(t / period) * period
+
+
+def _plan_at_release(simulator, station, scenario, at_release) -> None:
+    """Advances to the release time, asks at_release for the plan, and sets
+    the grasp pose and catch parameters in the context. Drake handles the
+    update events of a time at the start of the next step, so the state
+    machine's update at this time reads the new values."""
+    t = release_time(scenario)
+    simulator.AdvanceTo(t)
+    context = simulator.get_mutable_context()
+    plant = station.plant
+    state = plant.GetPositionsAndVelocities(
+        plant.GetMyContextFromRoot(context),
+        station.object_body.model_instance())
+    X_WG, parameters = at_release(np.asarray(state).copy(), t)
+    grasp = station.diagram.GetSubsystemByName("X_WG")
+    grasp.set_pose(grasp.GetMyMutableContextFromRoot(context), X_WG)
+    source = station.diagram.GetSubsystemByName("catch_parameters")
+    source.get_mutable_source_value(
+        source.GetMyMutableContextFromRoot(context)).SetFromVector(
+        list(parameters))
 
 
 def advance_to_outcome(simulator, station, scenario, t_final=None) -> str:

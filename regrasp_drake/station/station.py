@@ -29,12 +29,8 @@ from pydrake.multibody.plant import (
 )
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.controllers import InverseDynamicsController
-from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import (
-    ConstantValueSource,
-    ConstantVectorSource,
-    LogVectorOutput,
-)
+from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput
 
 from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning.ik import ArmIk
@@ -51,6 +47,25 @@ from regrasp_drake.world.objects import ObjectSpec, add_object
 _IR_FRAMES = [f"ir{i}" for i in range(1, 14)]
 # The tactile bumper stands this proud of the palm (paper: 3 x 6 x 0.1 cm).
 _BUMPER_THICKNESS_M = 0.001
+
+
+class GraspPoseSource(LeafSystem):
+    """Outputs the palm's grasp pose X_WG, kept as an abstract parameter so
+    that it can be set in a running simulation's context (`set_pose`): a
+    catch planned when the object is seen leaving the hand
+    (`station.episode.run_episode`'s `at_release`)."""
+
+    def __init__(self, X_WG: RigidTransform):
+        LeafSystem.__init__(self)
+        self._index = self.DeclareAbstractParameter(AbstractValue.Make(X_WG))
+        self.DeclareAbstractOutputPort(
+            "X_WG", lambda: AbstractValue.Make(RigidTransform()),
+            lambda context, out: out.set_value(
+                context.get_abstract_parameter(self._index).get_value()))
+
+    def set_pose(self, context, X_WG: RigidTransform) -> None:
+        """Sets the pose in this system's context."""
+        context.get_mutable_abstract_parameter(self._index).set_value(X_WG)
 
 
 @dc.dataclass
@@ -140,8 +155,8 @@ def build_station(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
         scenario, ik, robot.HAND_OPEN, robot.HAND_CLOSED,
         robot.FINGER_MAX_SPEED, park_q=q_park,
         perturbation=ThrowPerturbation.draw(scenario.throw.noise, throw_number)))
-    grasp = builder.AddNamedSystem("X_WG", ConstantValueSource(
-        AbstractValue.Make(X_WG if X_WG is not None else RigidTransform())))
+    grasp = builder.AddNamedSystem("X_WG", GraspPoseSource(
+        X_WG if X_WG is not None else RigidTransform()))
     builder.Connect(grasp.get_output_port(), machine.GetInputPort("X_WG"))
     builder.Connect(ir.GetOutputPort("ir_levels"),
                     machine.GetInputPort("ir_levels"))
