@@ -4,6 +4,7 @@
         [--levels 0 1 2 3 4] [--trials 4] [--workers 2]
         [--library regrasp_library.yaml]
         [--first-throw-library regrasp_library_first_throw.yaml]
+        [--at-release-library regrasp_library_at_release.yaml]
         [--out benchmarks/noise_curve]
 
 Noise level k perturbs every throw (scenario throw.noise): the release time
@@ -20,6 +21,9 @@ noise (the regrasp library files that `regrasp-drake table1` and
   first-throw: no watching throw: one noisy catching throw at the plan the
       first-throw learning phase stored (the predicted flight's, or, when
       its catch failed, the plan from what was seen of that throw).
+  at-release: no watching throw: one noisy catching throw whose catch is
+      planned when it releases the object, from the object's state seen
+      then (`learn --at-release`), with the parameters that mode learned.
 Writes <out>.jsonl (one line per trial, as it finishes; a rerun resumes),
 <out>.json (catch rate per mode and level) and <out>.png (the curves).
 """
@@ -56,6 +60,7 @@ def _trial(task):
     from regrasp_drake.errors import InputError
     from regrasp_drake.learning.library import lookup
     from regrasp_drake.planning.ik import ArmIk
+    from regrasp_drake.learning.flight_predictor import flight_from_release
     from regrasp_drake.station.episode import run_episode
     from regrasp_drake.throw_catch import plan_catch
     from regrasp_drake.world.objects import resolve_object
@@ -66,6 +71,12 @@ def _trial(task):
     entry = lookup(library, name)
     row = {"mode": mode, "object": name, "level": level, "trial": trial,
            "h_catch": entry.h_catch, "h_down": entry.h_down}
+    parameters = (entry.h_catch, entry.h_down)
+
+    def at_release(state, t):
+        flight = flight_from_release(state, t, obj, scenario)
+        return plan_catch(scenario, obj, ik, flight).X_WG, parameters
+
     t0 = time.perf_counter()
     try:
         if mode == "watch":
@@ -74,9 +85,10 @@ def _trial(task):
             X_WG = plan_catch(scenario, obj, ik, watched).X_WG
         else:
             X_WG = entry.X_WG
-        result = run_episode(scenario, obj, ik=ik, X_WG=X_WG,
-                             catch_parameters=(entry.h_catch, entry.h_down),
-                             throw_number=2)
+        result = run_episode(
+            scenario, obj, ik=ik, X_WG=X_WG, catch_parameters=parameters,
+            throw_number=2,
+            at_release=at_release if mode == "at-release" else None)
         row["outcome"] = result.outcome
     except InputError as e:  # the noisy flight gave no reachable catch point
         row["outcome"] = "no plan"
@@ -96,11 +108,14 @@ def main() -> int:
                         default=Path("regrasp_library.yaml"))
     parser.add_argument("--first-throw-library", type=Path,
                         default=Path("regrasp_library_first_throw.yaml"))
+    parser.add_argument("--at-release-library", type=Path,
+                        default=Path("regrasp_library_at_release.yaml"))
     parser.add_argument("--out", type=Path,
                         default=Path("benchmarks/noise_curve"))
     args = parser.parse_args()
     from regrasp_drake.learning.library import load_library
-    libraries = {"watch": args.library, "first-throw": args.first_throw_library}
+    libraries = {"watch": args.library, "first-throw": args.first_throw_library,
+                 "at-release": args.at_release_library}
     learned = {}
     for mode, path in libraries.items():
         learned[mode] = set(load_library(path))

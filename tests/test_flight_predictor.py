@@ -10,12 +10,14 @@ import numpy as np
 from regrasp_drake.errors import InputError
 from regrasp_drake.learning.flight_predictor import (
     FlightPredictor,
+    flight_from_release,
     free_time_s,
     object_inputs,
 )
-from regrasp_drake.learning.learning_phase import learn
+from regrasp_drake.learning.learning_phase import NoCatchPoint, learn
 from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station.episode import release_time, run_episode
 from regrasp_drake.station.mlp_system import load_weights
 from regrasp_drake.station.scenario import load_scenario
 from regrasp_drake.throw_catch import plan_catch, seen_flight, watch
@@ -195,6 +197,100 @@ class FirstThrowModeTest(unittest.TestCase):
             self.assertNotIn("caught", outcomes)
         self.assertAlmostEqual(r.sim_time_s,
                                sum(a.sim_time_s for a in r.attempts), places=9)
+
+
+class AtReleaseTest(unittest.TestCase):
+    """Planning each throw at its release: the hook sees the object's state
+    when the throw ends, the flight propagated from it gives the watching
+    throw's plan, and the learning phase catches without a watching throw."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.scenario = load_scenario()
+        cls.obj = load_catalogue()["table1-row2"]
+        cls.ik = ArmIk()
+        cls.watched = watch(cls.scenario, cls.obj, cls.ik)
+        cls.watch_plan = plan_catch(cls.scenario, cls.obj, cls.ik, cls.watched)
+        cls.model, _ = load_weights(MODELS_DIR / "catch_mlp.pt")
+        cls.episodes = []
+        cls.result = learn(cls.scenario, cls.obj, cls.model, ik=cls.ik,
+                           at_release=True, max_throws=2, progress=None,
+                           on_episode=cls.episodes.append)
+
+    def test_hook_sees_the_state_when_the_throw_ends(self):
+        seen = []
+
+        def hook(state, t):
+            seen.append((state, t))
+            return self.watch_plan.X_WG, (0.2, -0.07)
+
+        result = run_episode(self.scenario, self.obj, ik=self.ik,
+                             X_WG=self.watch_plan.X_WG,
+                             catch_parameters=(0.0, 0.0), at_release=hook)
+        self.assertEqual(len(seen), 1)
+        state, t = seen[0]
+        self.assertEqual(t, release_time(self.scenario))
+        self.assertAlmostEqual(t, free_time_s(self.scenario), places=12)
+        # Throws repeat: the watching throw logged the same state then.
+        k = int(np.argmin(np.abs(self.watched.logs.t - t)))
+        self.assertAlmostEqual(self.watched.logs.t[k], t, places=12)
+        np.testing.assert_array_equal(state,
+                                      self.watched.logs.object_state[:, k])
+        # The parameters the hook returned are the ones the throw used.
+        np.testing.assert_array_equal(result.logs.params[:, -1], [0.2, -0.07])
+
+    def test_plan_from_the_release_is_the_watching_throws(self):
+        t = release_time(self.scenario)
+        k = int(np.argmin(np.abs(self.watched.logs.t - t)))
+        flight = flight_from_release(self.watched.logs.object_state[:, k], t,
+                                     self.obj, self.scenario)
+        plan = plan_catch(self.scenario, self.obj, self.ik, flight)
+        self.assertEqual(plan.catch_point.t_s,
+                         self.watch_plan.catch_point.t_s)
+        # Measured 8 µm (the object's tumble, propagated 0.48 s).
+        self.assertLess(np.linalg.norm(
+            plan.X_WG.translation() - self.watch_plan.X_WG.translation()),
+            1e-3)
+        self.assertAlmostEqual(plan.catch_point.v_catch,
+                               self.watch_plan.catch_point.v_catch, delta=0.01)
+
+    def test_learning_without_a_watching_throw(self):
+        r = self.result
+        self.assertIsNone(r.watched)
+        self.assertTrue(r.first_throw and r.at_release)
+        self.assertEqual(r.attempts[0].throw, 1)
+        self.assertEqual(r.attempts[0].cell, r.start_cell)
+        self.assertEqual(len(self.episodes), r.throws)
+        self.assertEqual(r.plan.catch_point.t_s,
+                         self.watch_plan.catch_point.t_s)
+        self.assertLess(np.linalg.norm(
+            r.plan.X_WG.translation() - self.watch_plan.X_WG.translation()),
+            1e-3)
+        outcomes = [a.outcome for a in r.attempts]
+        if r.caught:
+            self.assertEqual(outcomes[-1], "caught")
+            self.assertEqual(r.learned.throws, r.throws)
+        else:
+            self.assertEqual((r.throws, r.stopped), (2, "max_throws"))
+            self.assertNotIn("caught", outcomes)
+        self.assertAlmostEqual(r.sim_time_s,
+                               sum(a.sim_time_s for a in r.attempts), places=9)
+
+    def test_no_reachable_catch_point_at_release(self):
+        # Its watched flight has none either (README: held-out objects).
+        obj = load_catalogue()["holdout-scraper-d180"]
+        with self.assertRaises(NoCatchPoint) as caught:
+            learn(self.scenario, obj, self.model, ik=self.ik, at_release=True,
+                  max_throws=3, progress=None)
+        self.assertEqual(caught.exception.throws, 1)
+        self.assertAlmostEqual(caught.exception.sim_time_s,
+                               release_time(self.scenario))
+
+    def test_not_with_a_flight_predictor(self):
+        with self.assertRaises(InputError):
+            learn(self.scenario, self.obj, self.model, ik=self.ik,
+                  at_release=True, progress=None,
+                  flight_predictor=FlightPredictor.load(SHIPPED))
 
 
 class SeenFlightTest(unittest.TestCase):
