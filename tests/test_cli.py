@@ -55,6 +55,16 @@ class TestCli(unittest.TestCase):
         self.assertEqual(result.returncode, 2)
         self.assertIn("sensors.levels", result.stderr)
 
+    def test_two_first_throw_modes_refused_together(self):
+        for command in ("learn", "table1"):
+            args = ["--object", "table1-row2"] if command == "learn" else []
+            result = _run(command, *args, "--first-throw", "--at-release")
+            with self.subTest(command=command):
+                self.assertEqual(result.returncode, 2)
+                self.assertEqual(len(result.stderr.strip().splitlines()), 1,
+                                 result.stderr)
+                self.assertIn("--at-release", result.stderr)
+
 
 if __name__ == "__main__":
     unittest.main()

@@ -245,8 +245,8 @@ class AtReleaseTest(unittest.TestCase):
         flight = flight_from_release(self.watched.logs.object_state[:, k], t,
                                      self.obj, self.scenario)
         plan = plan_catch(self.scenario, self.obj, self.ik, flight)
-        self.assertEqual(plan.catch_point.t_s,
-                         self.watch_plan.catch_point.t_s)
+        self.assertAlmostEqual(plan.catch_point.t_s,
+                               self.watch_plan.catch_point.t_s, places=9)
         # Measured 8 µm (the object's tumble, propagated 0.48 s).
         self.assertLess(np.linalg.norm(
             plan.X_WG.translation() - self.watch_plan.X_WG.translation()),
@@ -261,8 +261,8 @@ class AtReleaseTest(unittest.TestCase):
         self.assertEqual(r.attempts[0].throw, 1)
         self.assertEqual(r.attempts[0].cell, r.start_cell)
         self.assertEqual(len(self.episodes), r.throws)
-        self.assertEqual(r.plan.catch_point.t_s,
-                         self.watch_plan.catch_point.t_s)
+        self.assertAlmostEqual(r.plan.catch_point.t_s,
+                               self.watch_plan.catch_point.t_s, places=9)
         self.assertLess(np.linalg.norm(
             r.plan.X_WG.translation() - self.watch_plan.X_WG.translation()),
             1e-3)
@@ -291,6 +291,36 @@ class AtReleaseTest(unittest.TestCase):
             learn(self.scenario, self.obj, self.model, ik=self.ik,
                   at_release=True, progress=None,
                   flight_predictor=FlightPredictor.load(SHIPPED))
+
+
+class ReleasePlanToleranceTest(unittest.TestCase):
+    """The catch planned from a held-out object's release lies inside the
+    catch tolerance the hand absorbs: the largest radius within which every
+    palm offset in the palm's plane still catches, measured by
+    benchmarks/catch_tolerance.py (10 mm grid, 81 throws) and read from its
+    JSON. (The flight predicted from the object's features does not: its
+    palm is 9-93 mm off, README.)"""
+
+    def test_held_out_object(self):
+        name = "holdout-scraper-d330"
+        tolerance = json.loads((Path(__file__).parents[1] / "benchmarks" /
+                                "catch_tolerance.json").read_text())
+        tolerance_m = tolerance["objects"][name]["tolerance_mm"] / 1000
+        self.assertGreater(tolerance_m, 0.0)
+        scenario, ik = load_scenario(), ArmIk()
+        obj = load_catalogue()[name]
+        watched = watch(scenario, obj, ik)
+        actual = plan_catch(scenario, obj, ik, watched)
+        t = release_time(scenario)
+        k = int(np.argmin(np.abs(watched.logs.t - t)))
+        planned = plan_catch(scenario, obj, ik, flight_from_release(
+            watched.logs.object_state[:, k], t, obj, scenario))
+        self.assertAlmostEqual(planned.catch_point.t_s,
+                               actual.catch_point.t_s, places=9)
+        X_GP = actual.X_WG.inverse() @ planned.X_WG  # in the palm's frame
+        self.assertLess(np.linalg.norm(X_GP.translation()[:2]), tolerance_m)
+        self.assertLess(abs(X_GP.translation()[2]), tolerance_m)
+        self.assertLess(X_GP.rotation().ToAngleAxis().angle(), np.radians(1))
 
 
 class SeenFlightTest(unittest.TestCase):
