@@ -58,9 +58,9 @@ def _trial(task):
     import torch
 
     from regrasp_drake.errors import InputError
+    from regrasp_drake.learning.flight_predictor import flight_from_release
     from regrasp_drake.learning.library import lookup
     from regrasp_drake.planning.ik import ArmIk
-    from regrasp_drake.learning.flight_predictor import flight_from_release
     from regrasp_drake.station.episode import run_episode
     from regrasp_drake.throw_catch import plan_catch
     from regrasp_drake.world.objects import resolve_object

@@ -328,7 +328,8 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
     # on. In first-throw mode, a failed catch from the predicted plan was
     # still watched: the search starts again from the plan of what was seen
     # of its flight (`throw_catch.seen_flight`), or, if that shows no
-    # reachable catch point, from a watching throw.
+    # reachable catch point, from a watching throw. At release, throw 1's
+    # plan (made during the throw, `plan_at_release`) starts the search.
     attempts, stopped, unplanned_sim_s = [], "exhausted", 0.0
     while True:
         cell = None if order is None else next(order, None)
@@ -345,8 +346,10 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
                                   else (0.0, 0.0)),
                 meshcat=meshcat, throw_number=throws + 1,
                 at_release=plan_at_release if at_release else None)
-        except InputError as e:  # nothing to catch: the throw still counts
-            throws += 1
+        except InputError as e:
+            if not at_release:
+                raise
+            throws += 1  # nothing to catch at the release: the throw counts
             unplanned_sim_s += release_time(scenario)
             report(f"throw {throws}: no reachable catch point at the release"
                    f" ({e})")

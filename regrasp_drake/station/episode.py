@@ -1,6 +1,7 @@
 """One episode: build the station, throw, (watch or catch), read the outcome."""
 
 import dataclasses as dc
+import math
 import time
 
 import numpy as np
@@ -106,13 +107,13 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
 
 
 def release_time(scenario: Scenario) -> float:
-    """When the throw ends and the arm leaves for the grasp pose (the state
-    machine reads X_WG at its update then), on the sensors' sample grid, [s].
-    The object flies free from here (the flight predictor predicts its state
-    at this moment too)."""
+    """The state machine's first update at or after the throw's end, [s]: it
+    reads X_WG there and the arm leaves for the grasp pose. The object flies
+    free from here (the flight predictor predicts its state at this moment
+    too)."""
     period = scenario.sensors.period_s
     t = scenario.throw.settle_s + scenario.throw.knot_times_s[-1]
-    return round(t / period) * period
+    return math.ceil(t / period - 1e-9) * period
 
 
 def _plan_at_release(simulator, station, scenario, at_release) -> None:
