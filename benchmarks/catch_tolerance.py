@@ -24,9 +24,7 @@ Writes <out>.jsonl (one line per throw, as it finishes; a rerun resumes),
 
 import argparse
 import json
-import multiprocessing
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -142,21 +140,14 @@ def main() -> int:
                   file=sys.stderr)
             return 2
     offsets = range(-args.reach_mm, args.reach_mm + 1, args.step_mm)
-    from regrasp_drake.grid import print_progress, read_rows
+    from regrasp_drake.grid import append_rows, read_rows
     lines = args.out.with_suffix(".jsonl")
     done = read_rows(lines, key=_key)
     tasks = [(name, library[name], dx, dy) for name in args.objects
              for dx in offsets for dy in offsets
              if (name, dx, dy) not in done]
-    start = time.perf_counter()
-    ctx = multiprocessing.get_context("fork")
-    with ctx.Pool(args.workers) as pool, lines.open("a") as f:
-        for n, row in enumerate(pool.imap(_offset_throw, tasks), 1):
-            f.write(json.dumps(row) + "\n")
-            f.flush()
-            done[_key(row)] = row
-            print_progress(n, len(tasks), start, "catch tolerance", "throws")
-    print(file=sys.stderr)
+    append_rows(_offset_throw, tasks, lines, done, _key, workers=args.workers,
+                label="catch tolerance", unit="throws")
     summary = {"step_mm": args.step_mm, "reach_mm": args.reach_mm,
                "objects": {}}
     for name in args.objects:

@@ -31,7 +31,6 @@ Writes <out>.jsonl (one line per trial, as it finishes; a rerun resumes),
 import argparse
 import dataclasses as dc
 import json
-import multiprocessing
 import sys
 import time
 from pathlib import Path
@@ -129,7 +128,7 @@ def main() -> int:
               "learned for any object (run `regrasp-drake table1 --library F` "
               "first)", file=sys.stderr)
         return 2
-    from regrasp_drake.grid import print_progress, read_rows
+    from regrasp_drake.grid import append_rows, read_rows
     lines = args.out.with_suffix(".jsonl")
     done = read_rows(lines, key=_key)
     tasks = [(mode, name, level, trial, str(libraries[mode]))
@@ -137,15 +136,8 @@ def main() -> int:
              for name in args.objects for trial in range(args.trials)
              if name in learned[mode]
              and (mode, name, level, trial) not in done]
-    start = time.perf_counter()
-    ctx = multiprocessing.get_context("fork")
-    with ctx.Pool(args.workers) as pool, lines.open("a") as f:
-        for n, row in enumerate(pool.imap_unordered(_trial, tasks), 1):
-            f.write(json.dumps(row) + "\n")
-            f.flush()
-            done[_key(row)] = row
-            print_progress(n, len(tasks), start, "noise curve", "trials")
-    print(file=sys.stderr)
+    append_rows(_trial, tasks, lines, done, _key, workers=args.workers,
+                label="noise curve", unit="trials")
     curves = {}
     for mode in libraries:
         curves[mode] = []

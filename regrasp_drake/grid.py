@@ -62,6 +62,37 @@ def read_rows(path: Path, key=lambda row: tuple(row["cell"])) -> dict:
     return done
 
 
+def open_rows(path: Path):
+    """The JSON-lines file at path, opened to append rows. A last line cut by
+    a kill (no newline) is ended first, so that the next row is a line of its
+    own (read_rows skips the cut one; its work runs again)."""
+    path = Path(path)
+    cut = path.exists() and path.stat().st_size > 0 and not (
+        path.read_bytes()[-1:] == b"\n")
+    f = path.open("a")
+    if cut:
+        f.write("\n")
+    return f
+
+
+def append_rows(function, tasks, path: Path, done: dict, key, *,
+                workers: int, label: str, unit: str) -> None:
+    """Runs function(task) for every task in `workers` forked processes and
+    appends each result row to the JSON-lines file at path as it finishes
+    (flushed, in the tasks' order), into `done` under key(row) too, with a
+    progress bar: a killed run resumes with read_rows(path, key)."""
+    import multiprocessing
+    start = time.perf_counter()
+    ctx = multiprocessing.get_context("fork")
+    with ctx.Pool(workers) as pool, open_rows(path) as f:
+        for n, row in enumerate(pool.imap(function, tasks), 1):
+            f.write(json.dumps(row) + "\n")
+            f.flush()
+            done[key(row)] = row
+            print_progress(n, len(tasks), start, label, unit)
+    print(file=sys.stderr)
+
+
 def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
             progress=True, only=None) -> dict:
     """Runs every cell of `obj`'s success map not yet in `out` (JSON lines,
@@ -78,7 +109,7 @@ def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
     if not todo:
         return done
     start = time.perf_counter()
-    with out.open("a") as f:
+    with open_rows(out) as f:
         def write(i, row):
             row = {"cell": list(todo[i])} | row
             f.write(json.dumps(row) + "\n")

@@ -1,16 +1,52 @@
 """The parameter space: 150 cells inside the paper's ranges."""
 
+import tempfile
 import unittest
+from pathlib import Path
 
 from regrasp_drake.grid import (
     H_CATCH_VALUES,
     H_DOWN_VALUES,
+    append_rows,
     cell_parameters,
     cells,
     format_map,
     nearest_cell,
+    read_rows,
 )
 from regrasp_drake.station.scenario import H_CATCH_RANGE, H_DOWN_RANGE
+
+
+def _square(k):
+    return {"k": k, "square": k * k}
+
+
+class AppendRowsTest(unittest.TestCase):
+    """Resumable JSON lines (open_rows, which append_rows and run_map use):
+    rows appended as they finish, in the tasks' order; after a line cut by a
+    kill, the next rows are whole lines and read back."""
+
+    def test_rows_written_and_resumed(self):
+        with tempfile.TemporaryDirectory() as d:
+            path = Path(d) / "rows.jsonl"
+            key = lambda row: row["k"]  # noqa: E731
+            done = {}
+            append_rows(_square, [3, 1, 2], path, done, key, workers=2,
+                        label="test", unit="tasks")
+            lines = path.read_text().splitlines()
+            self.assertEqual(len(lines), 3)
+            self.assertIn('"k": 3', lines[0])
+            with path.open("a") as f:
+                f.write('{"k": 4, "squ')  # a line cut by a kill
+            resumed = read_rows(path, key=key)
+            self.assertEqual(resumed, done)
+            self.assertEqual(resumed[2], {"k": 2, "square": 4})
+            todo = [k for k in range(1, 6) if k not in resumed]
+            self.assertEqual(todo, [4, 5])
+            append_rows(_square, todo, path, resumed, key, workers=2,
+                        label="test", unit="tasks")
+            self.assertEqual(read_rows(path, key=key),
+                             {k: _square(k) for k in range(1, 6)})
 
 
 class TestGrid(unittest.TestCase):
