@@ -3,7 +3,7 @@ import unittest
 
 import numpy as np
 from pydrake.geometry import Box, Capsule, Cylinder, Sphere
-from pydrake.math import RigidTransform, RollPitchYaw
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.multibody.plant import (
     AddMultibodyPlantSceneGraph,
     ContactModel,
@@ -406,6 +406,51 @@ class TactileBumperTest(unittest.TestCase):
         # It rests on the palm: its height is the palm top plus its radius.
         z = plant.EvalBodyPoseInWorld(plant_context, parts["sphere"]).translation()[2]
         self.assertAlmostEqual(z, PALM_TOP_Z + SPHERE_RADIUS, delta=1e-3)
+
+
+class PalmInfraredLayoutTest(unittest.TestCase):
+    """The hand's palm sensors IR 1-3 all see an object held across the palm.
+
+    The catch plan lays the object's axis along the palm's y; the fingers
+    wrap it from +x, the thumb from -x, and held objects come to rest with
+    their axis within about 1 cm of the palm's centre line (measured in
+    caught episodes: -11 to +10 mm) and up to about 15 mm above the palm.
+    The grasp monitor needs every palm sensor below `palm_grasp_level`
+    (0.07 m) or the bumper: a sensor that misses a held object turns a catch
+    into a drop (a row across the palm did, for IR 3)."""
+
+    def test_held_cylinders_seen_by_all_three(self):
+        from regrasp_drake.station.scenario import load_scenario
+        from regrasp_drake.world import robot
+
+        scenario = load_scenario()
+        reach_m = (scenario.monitor.palm_grasp_level / scenario.sensors.levels
+                   * scenario.sensors.palm_range_m)
+        plant = AddMultibodyPlantSceneGraph(DiagramBuilder(), 1e-3)[0]
+        hand = robot.add_hand(plant)
+        plant.Finalize()
+        context = plant.CreateDefaultContext()
+        palm = plant.GetFrameByName("palm", hand)
+        X_PS = plant.GetFrameByName("palm_surface", hand).CalcPose(context, palm)
+        X_PI = [plant.GetFrameByName(f"ir{i}", hand).CalcPose(context, palm)
+                for i in (1, 2, 3)]
+        # The cylinder's axis (its frame's z) along the palm's y.
+        R_SC = RotationMatrix.MakeXRotation(math.pi / 2)
+        checked = 0
+        for radius in (0.02, 0.025, 0.03, 0.035):  # the catalogue's grips
+            for dx in np.linspace(-0.01, 0.01, 5):
+                for gap in (0.0, 0.015):
+                    X_PC = X_PS @ RigidTransform(R_SC, [dx, 0.0, radius + gap])
+                    X_CP = X_PC.inverse()
+                    o = np.array([(X_CP @ X).translation() for X in X_PI])
+                    d = np.array([(X_CP @ X).rotation().col(2) for X in X_PI])
+                    hit = ray_entry(Cylinder(radius, 0.06), o, d)
+                    self.assertTrue(
+                        np.all(hit < reach_m),
+                        f"radius {radius} m, {dx:+.3f} m off the centre "
+                        f"line, {gap} m up: IR 1-3 read {hit} m")
+                    checked += 1
+        self.assertEqual(checked, 40)
 
 
 if __name__ == "__main__":

@@ -138,8 +138,8 @@ class CatchConfig:
     # Where (h_catch, h_down) come from: "fixed" (the two values below) or
     # "mlp" (the network in `weights`).
     parameter_source: str = "fixed"
-    # Fixed catch parameters, [m]: the middle of table1-row2's catching
-    # region (h_catch >= 0.20 m with h_down <= -0.10 m catches it).
+    # Fixed catch parameters, [m]: inside table1-row2's catching region
+    # (h_catch >= 0.16 m with h_down <= -0.06 m catches it).
     h_catch_m: float = 0.28
     h_down_m: float = -0.12
     # Weights file of the MLP, relative to the repository's models/ directory
