@@ -161,6 +161,17 @@ def _add_first_throw_args(p: argparse.ArgumentParser) -> None:
                         "seen then (not with --first-throw)")
 
 
+def _add_search_arg(p: argparse.ArgumentParser) -> None:
+    from regrasp_drake.learning.search import SEARCHES
+    p.add_argument("--search", choices=SEARCHES, default="wavefront",
+                   help="the order of the cells tried after the network's: "
+                        "wavefront (the paper's rings of neighbours; "
+                        "default) or map-prior (the cell most likely to "
+                        "catch given the training success maps "
+                        "models/dataset/maps.npz and the cells failed so "
+                        "far)")
+
+
 def _check_first_throw_args(args) -> None:
     if args.first_throw and args.at_release:
         raise InputError("--at-release: got it with --first-throw, expected "
@@ -188,7 +199,7 @@ def _cmd_learn(args) -> int:
                    scenario_label=label, object_source=source,
                    max_throws=args.max_throws,
                    flight_predictor=_flight_predictor(args),
-                   at_release=args.at_release,
+                   at_release=args.at_release, search=args.search,
                    meshcat=replay.meshcat if replay else None,
                    on_episode=(lambda r: replay.add_episode(r.sim_time_s))
                    if replay else None)
@@ -292,7 +303,7 @@ def _cmd_table1(args) -> int:
                       maps_dir=None if args.no_maps else args.maps_dir,
                       flight_predictor=_flight_predictor(args),
                       objects=args.objects, max_throws=args.max_throws,
-                      at_release=args.at_release)
+                      at_release=args.at_release, search=args.search)
     print(format_markdown(rows))
     write_outputs(rows, args.json, args.markdown)
     return 0
@@ -365,7 +376,8 @@ def make_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_throw)
 
     p = sub.add_parser("learn", help="the learning phase: watch, predict, "
-                                     "catch, search the parameter space")
+                                     "catch, search the parameter space "
+                                     "(--search)")
     _add_object_args(p)
     _add_scenario_arg(p)
     _add_library_arg(p)
@@ -381,6 +393,7 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", type=Path, metavar="F",
                    help="PNG of the search (the paper's Fig. 7)")
     _add_first_throw_args(p)
+    _add_search_arg(p)
     p.set_defaults(func=_cmd_learn)
 
     p = sub.add_parser("apply", help="the applying phase: one throw, caught "
@@ -422,7 +435,8 @@ def make_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_train)
 
     p = sub.add_parser("table1", help="the paper's Table 1: the learning "
-                                      "phase on its five test objects")
+                                      "phase on its five test objects "
+                                      "(--search as for learn)")
     _add_scenario_arg(p)
     _add_library_arg(p)
     p.add_argument("--weights", type=Path, metavar="F",
@@ -442,6 +456,7 @@ def make_parser() -> argparse.ArgumentParser:
                    help="other objects instead of Table 1's (e.g. the "
                         "holdout-* objects); no paper figures for them")
     _add_first_throw_args(p)
+    _add_search_arg(p)
     p.set_defaults(func=_cmd_table1)
 
     p = sub.add_parser("train-flight", help="fit the flight predictor (the "

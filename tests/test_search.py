@@ -1,10 +1,30 @@
-"""The wavefront order of the search over the 150 cells (paper Figs. 7-8)."""
+"""The searches over the 150 cells: the paper's wavefront order (Figs. 7-8)
+and the map-prior search, alone, in the learning phase and on the command
+line. One short learning run (three throws)."""
 
+import contextlib
+import io
+import itertools
+import json
+import tempfile
 import unittest
+from pathlib import Path
 
+import numpy as np
+
+from regrasp_drake.cli import make_parser
 from regrasp_drake.errors import InputError
 from regrasp_drake.grid import H_CATCH_VALUES, H_DOWN_VALUES, cells
-from regrasp_drake.learning.search import ring, wavefront_order
+from regrasp_drake.learning.dataset import object_of
+from regrasp_drake.learning.search import (
+    attempts_to_catch,
+    load_prior_maps,
+    map_prior_order,
+    ring,
+    smooth,
+    wavefront_order,
+)
+from regrasp_drake.paths import MODELS_DIR
 
 N_CATCH, N_DOWN = len(H_CATCH_VALUES), len(H_DOWN_VALUES)
 CORNERS = [(0, 0), (0, N_DOWN - 1), (N_CATCH - 1, 0), (N_CATCH - 1, N_DOWN - 1)]
@@ -72,6 +92,244 @@ class TestWavefrontOrder(unittest.TestCase):
             with self.subTest(start=start), self.assertRaises(InputError) as e:
                 wavefront_order(start)
             self.assertIn("start_cell", str(e.exception))
+
+
+
+def block(i_range, j_range) -> np.ndarray:
+    """A success map that catches in the cells i_range x j_range only."""
+    caught = np.zeros((N_CATCH, N_DOWN), bool)
+    caught[i_range[0]:i_range[1] + 1, j_range[0]:j_range[1] + 1] = True
+    return caught
+
+
+class TestMapPriorOrder(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.names, cls.prior = load_prior_maps()  # the shipped training maps
+
+    def test_start_first_every_cell_once(self):
+        rng = np.random.default_rng(0)
+        priors = {"shipped": self.prior,
+                  "random probabilities": rng.random((5, N_CATCH, N_DOWN))}
+        for (label, prior), start in itertools.product(
+                priors.items(), CORNERS + [(7, 2), (4, 7)]):
+            order = list(map_prior_order(start, prior))
+            with self.subTest(prior=label, start=start):
+                self.assertEqual(order[0], start)
+                self.assertEqual(len(order), 150)
+                self.assertEqual(set(order), set(cells()))  # none twice
+
+    def test_identical_maps_give_their_catching_cells_in_wavefront_order(self):
+        """Unsmoothed, every map the same: a failure changes no map's
+        weight relative to another, so the posterior stays that map, and
+        the search tries its catching cells first, nearest in the wavefront
+        order first, then the others."""
+        caught = np.zeros((N_CATCH, N_DOWN), bool)
+        for cell in ((3, 3), (3, 4), (8, 12), (0, 14)):
+            caught[cell] = True
+        start = (7, 2)  # fails
+        order = list(map_prior_order(start, [caught] * 3, sigma_cells=0))
+        wave = wavefront_order(start)
+        self.assertEqual(order[1], next(c for c in wave if caught[c]))
+        self.assertEqual(order[1], (3, 3))
+        self.assertEqual(order, [start] + [c for c in wave if caught[c]] + [
+            c for c in wave[1:] if not caught[c]])
+
+    def test_smoothed_single_cell_map_goes_straight_to_it(self):
+        """One catching cell ten rings from the start: the wavefront tries
+        dozens of cells first, the map prior (smoothed) goes there second."""
+        caught = block((1, 1), (12, 12))
+        start = (7, 2)
+        self.assertGreater(attempts_to_catch(wavefront_order(start), caught),
+                           100)
+        order = map_prior_order(start, [caught, caught])
+        self.assertEqual(list(itertools.islice(order, 2)), [start, (1, 12)])
+
+    def test_leave_one_object_out_beats_the_wavefront(self):
+        """A prior of two kinds of object, two catch points each: six that
+        catch around the start cell (7, 2) and three that catch only far
+        from it (h_catch low, no lowering). Each object held out with both
+        its maps; the far ones need 2 cells with the map prior (the start
+        fails, so the far maps take the weight) and over 100 with the
+        wavefront."""
+        maps, names = [], []
+        for k in range(6):
+            for point, shift in ((1, 0), (2, 1)):
+                maps.append(block((6 + shift, 8), (k % 3, 3 + shift)))
+                names.append(f"near-{k}" + ("" if point == 1 else "@2"))
+        for k in range(3):
+            for point, shift in ((1, 0), (2, 1)):
+                maps.append(block((0, 1 + shift), (11 + k, 14)))
+                names.append(f"far-{k}" + ("" if point == 1 else "@2"))
+        maps = np.array(maps)
+        start = (7, 2)
+        costs = {"wavefront": {}, "map-prior": {}}
+        for name, caught in zip(names, maps):
+            prior = maps[[object_of(n) != object_of(name) for n in names]]
+            costs["wavefront"][name] = attempts_to_catch(
+                wavefront_order(start), caught)
+            costs["map-prior"][name] = attempts_to_catch(
+                map_prior_order(start, prior), caught)
+        for name in names:
+            with self.subTest(name=name):
+                if name.startswith("near"):
+                    self.assertEqual(costs["wavefront"][name], 1)
+                    self.assertEqual(costs["map-prior"][name], 1)
+                else:
+                    self.assertGreater(costs["wavefront"][name], 100)
+                    self.assertEqual(costs["map-prior"][name], 2)
+        self.assertLess(np.mean(list(costs["map-prior"].values())),
+                        np.mean(list(costs["wavefront"].values())) / 5)
+
+    def test_bad_arguments_refused_when_called(self):
+        good = np.zeros((2, N_CATCH, N_DOWN))
+        for kwargs, field in (
+                (dict(start_cell=(N_CATCH, 0), prior_maps=good), "start_cell"),
+                (dict(start_cell=(0, 0), prior_maps=good[:, :, :5]),
+                 "prior_maps"),
+                (dict(start_cell=(0, 0), prior_maps=good[:0]), "prior_maps"),
+                (dict(start_cell=(0, 0), prior_maps=good + 2), "prior_maps"),
+                (dict(start_cell=(0, 0), prior_maps=good, eps=0), "eps"),
+                (dict(start_cell=(0, 0), prior_maps=good, eps=0.6), "eps"),
+                (dict(start_cell=(0, 0), prior_maps=good, sigma_cells=-1),
+                 "sigma_cells")):
+            with self.subTest(field=field, kwargs=list(kwargs)), \
+                    self.assertRaises(InputError) as e:
+                map_prior_order(**kwargs)  # no next(): refused at once
+            self.assertIn(field, str(e.exception))
+
+    def test_smoothing_keeps_probabilities_and_spreads_a_catch(self):
+        caught = block((4, 4), (7, 7))
+        p = smooth(caught)
+        self.assertAlmostEqual(p.sum(), 1.0, places=12)  # no edge nearby
+        self.assertEqual(np.unravel_index(p.argmax(), p.shape), (4, 7))
+        self.assertGreater(p[4, 8], p[4, 9])   # falls off with distance
+        self.assertEqual(p[4, 10], 0.0)        # beyond the 2-cell radius
+        # At an edge, the edge cells repeat outwards: a caught edge row
+        # stays caught, and nothing leaves [0, 1].
+        edge = smooth(block((0, 0), (0, N_DOWN - 1)))
+        np.testing.assert_allclose(edge[0], edge[0, 0])
+        self.assertTrue(np.all((edge >= 0) & (edge <= 1)))
+        np.testing.assert_array_equal(smooth(caught, 0), caught)
+
+
+class TestPriorMapsFile(unittest.TestCase):
+    def test_shipped_prior(self):
+        names, caught = load_prior_maps()
+        self.assertEqual(caught.shape, (len(names), N_CATCH, N_DOWN))
+        self.assertEqual(caught.dtype, bool)
+        from regrasp_drake.world.objects import load_catalogue
+        catalogue = load_catalogue()
+        self.assertTrue(all(catalogue[object_of(n)].set == "train"
+                            for n in names))
+
+    def test_missing_and_malformed_files_refused_in_one_line(self):
+        with tempfile.TemporaryDirectory() as d:
+            d = Path(d)
+            (d / "text.npz").write_text("not an archive\n")
+            np.savez(d / "no_caught.npz", objects=np.array(["a"]))
+            np.savez(d / "wrong_shape.npz", objects=np.array(["a"]),
+                     caught=np.zeros((1, N_CATCH, N_DOWN - 1), bool))
+            np.savez(d / "counts.npz", objects=np.array(["a"]),
+                     caught=np.zeros((1, N_CATCH, N_DOWN), int))
+            for name in ("missing.npz", "text.npz", "no_caught.npz",
+                         "wrong_shape.npz", "counts.npz"):
+                with self.subTest(file=name), \
+                        self.assertRaises(InputError) as e:
+                    load_prior_maps(d / name)
+                message = str(e.exception)
+                self.assertIn(str(d / name), message)
+                self.assertEqual(len(message.splitlines()), 1)
+
+
+class TestSearchOption(unittest.TestCase):
+    """`search` in the learning phase and `--search` on the command line."""
+
+    def test_unknown_search_refused_before_any_throw(self):
+        from regrasp_drake.learning.learning_phase import learn
+        from regrasp_drake.station.mlp_system import CatchMlp
+        from regrasp_drake.station.scenario import load_scenario
+        from regrasp_drake.world.objects import load_catalogue
+        episodes, progress = [], io.StringIO()
+        for kwargs, expected in (
+                (dict(search="bogus"),
+                 "search: got 'bogus', expected one of 'wavefront', "
+                 "'map-prior'"),
+                (dict(search="wavefront", prior_maps=np.zeros((1, 10, 15))),
+                 "prior_maps: got 'given', expected none unless search is "
+                 "'map-prior'")):
+            with self.subTest(search=kwargs["search"]), \
+                    self.assertRaises(InputError) as e:
+                learn(load_scenario(), load_catalogue()["table1-row2"],
+                      CatchMlp(), on_episode=episodes.append,
+                      progress=progress, **kwargs)
+            self.assertEqual(str(e.exception), expected)
+        self.assertEqual(episodes, [])  # no throw made
+        self.assertEqual(progress.getvalue(), "")
+
+    def test_cli_search_option(self):
+        parser = make_parser()
+        for command, args in (("learn", ["--object", "table1-row2"]),
+                              ("table1", [])):
+            with self.subTest(command=command):
+                self.assertEqual(
+                    parser.parse_args([command, *args]).search, "wavefront")
+                self.assertEqual(parser.parse_args(
+                    [command, *args, "--search", "map-prior"]).search,
+                    "map-prior")
+                stderr = io.StringIO()
+                with contextlib.redirect_stderr(stderr), \
+                        self.assertRaises(SystemExit) as e:
+                    parser.parse_args([command, *args, "--search", "rings"])
+                self.assertEqual(e.exception.code, 2)
+                self.assertIn("--search", stderr.getvalue())
+                self.assertIn("map-prior", stderr.getvalue())
+
+
+class TestMapPriorLearningRun(unittest.TestCase):
+    """table1-row2 from the cell (0.04, 0.00) m, which drops it: the
+    wavefront's next cells drop it too (test_learning's capped search; its
+    stored map: the wavefront's first catch is its 14th cell); the map prior
+    goes to (0.40, -0.10) m, which catches. Three throws."""
+
+    def test_catches_on_the_map_priors_second_cell(self):
+        import torch
+
+        from regrasp_drake.learning.learning_phase import learn
+        from regrasp_drake.planning.ik import ArmIk
+        from regrasp_drake.station.mlp_system import load_weights
+        from regrasp_drake.station.scenario import load_scenario
+        from regrasp_drake.world.objects import load_catalogue
+        from tests.test_learning import constant_weights
+        torch.set_num_threads(1)
+        with tempfile.TemporaryDirectory() as d:
+            model, _ = load_weights(constant_weights(Path(d) / "w.pt",
+                                                     0.04, 0.0))
+        _, prior = load_prior_maps()
+        r = learn(load_scenario(), load_catalogue()["table1-row2"], model,
+                  ik=ArmIk(), max_throws=3, progress=None, search="map-prior")
+        expected = list(itertools.islice(map_prior_order((0, 14), prior), 2))
+        self.assertEqual(expected, [(0, 14), (9, 4)])
+        self.assertEqual(r.start_cell, (0, 14))
+        self.assertEqual([a.cell for a in r.attempts], expected)
+        self.assertEqual([a.outcome == "caught" for a in r.attempts],
+                         [False, True])
+        self.assertTrue(r.caught)
+        self.assertEqual(r.throws, 3)
+        self.assertEqual(r.as_dict()["search"], "map-prior")
+        self.assertEqual((r.learned.h_catch, r.learned.h_down), (0.40, -0.10))
+        # The stored success map of table1-row2 (models/results/maps, from
+        # the same watched plan) says the same of both cells.
+        stored = {tuple(row["cell"]): row["outcome"] for row in map(
+            json.loads, (MODELS_DIR / "results" / "maps" / "table1-row2.jsonl")
+            .read_text().splitlines())}
+        self.assertEqual([stored[c] == "caught" for c in expected],
+                         [False, True])
+        caught = np.zeros((N_CATCH, N_DOWN), bool)
+        for cell, outcome in stored.items():
+            caught[cell] = outcome == "caught"
+        self.assertEqual(attempts_to_catch(wavefront_order((0, 14)), caught),
+                         14)
 
 
 if __name__ == "__main__":

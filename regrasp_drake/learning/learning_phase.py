@@ -4,9 +4,13 @@ Learning: throw 1 watches the object's flight (no catch attempt); the offline
 stage finds the catch point and plans the hand's pose there
 (`throw_catch.plan_catch`); the MLP predicts (h_catch, h_down) from
 (v_catch, h_cm, r_cm, d_obj, v_conv); throw 2 catches with that prediction;
-when it fails, the wavefront search (`search.wavefront_order`) goes on from
-the prediction's cell, one throw per cell, until a catch or the grid is
-exhausted. Every throw recreates the same initial conditions, so the flight
+when it fails, the search goes on from the prediction's cell, one throw per
+cell, until a catch or the grid is exhausted: the paper's wavefront search
+(`search="wavefront"`, the default; `search.wavefront_order`), or the
+map-prior search (`search="map-prior"`; `search.map_prior_order`), which
+after each failed cell tries the cell most likely to catch according to the
+training success maps (models/dataset/maps.npz) that agree with the failures
+so far. Every throw recreates the same initial conditions, so the flight
 repeats exactly and only the catch differs.
 
 Throw 2 uses the parameters of the grid cell nearest the clamped prediction,
@@ -50,7 +54,12 @@ from regrasp_drake.errors import InputError, field_error
 from regrasp_drake.grid import cell_parameters, nearest_cell
 from regrasp_drake.learning import library as lib
 from regrasp_drake.learning.flight_predictor import flight_from_release
-from regrasp_drake.learning.search import wavefront_order
+from regrasp_drake.learning.search import (
+    SEARCHES,
+    load_prior_maps,
+    map_prior_order,
+    wavefront_order,
+)
 from regrasp_drake.planning.catch_plan import (
     CatchPoint,
     catch_moments,
@@ -199,6 +208,7 @@ class LearningResult:
     replanned: dict | None = None
     first_plan: CatchPlan | None = None  # the predicted flight's, if replaced
     at_release: bool = False  # each throw planned when it released the object
+    search: str = "wavefront"  # the search's rule: one of search.SEARCHES
 
     @property
     def search_attempts(self) -> list[Attempt]:
@@ -216,6 +226,7 @@ class LearningResult:
                       else _episode_dict(self.watched)),
             "first_throw": self.first_throw,
             "at_release": self.at_release,
+            "search": self.search,
             "replanned": self.replanned,
             "first_plan": (None if self.first_plan is None
                            else _plan_dict(self.first_plan)),
@@ -236,8 +247,14 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
           scenario_label: str = "defaults",
           object_source: str = "catalogue", max_throws: int | None = None,
           meshcat=None, on_episode=None, progress=sys.stderr,
-          flight_predictor=None, at_release: bool = False) -> LearningResult:
+          flight_predictor=None, at_release: bool = False,
+          search: str = "wavefront", prior_maps=None) -> LearningResult:
     """The learning phase on one object (see the module's docstring).
+
+    search: the order of the cells after the network's, "wavefront" (the
+    paper's) or "map-prior" (see learning/search.py). prior_maps: the map
+    prior's success maps, (entries, 10, 15) (None: the shipped training maps,
+    `search.load_prior_maps`); only with "map-prior".
 
     flight_predictor: a learning.flight_predictor.FlightPredictor for the
     first-throw mode (no watching throw), or None. at_release: the
@@ -253,6 +270,14 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
     if at_release and flight_predictor is not None:
         raise field_error("flight_predictor", "given",
                           "none when planning at release")
+    if search not in SEARCHES:
+        raise field_error("search", search,
+                          f"one of {', '.join(map(repr, SEARCHES))}")
+    if prior_maps is not None and search != "map-prior":
+        raise field_error("prior_maps", "given",
+                          "none unless search is 'map-prior'")
+    if search == "map-prior" and prior_maps is None:
+        _, prior_maps = load_prior_maps()  # a bad file: refused before a throw
     first_throw = flight_predictor is not None or at_release
     if max_throws is not None and not (
             isinstance(max_throws, int) and max_throws >= 2 - first_throw):
@@ -305,7 +330,9 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
         report(f"catch point at t = {plan.catch_point.t_s:.3f} s, v_catch "
                f"{plan.catch_point.v_catch:.3f} m/s; network: h_catch "
                f"{raw[0]:.3f} m, h_down {raw[1]:.3f} m -> start cell {start}")
-        return features, raw, prediction, start, iter(wavefront_order(start))
+        order = (map_prior_order(start, prior_maps) if search == "map-prior"
+                 else iter(wavefront_order(start)))
+        return features, raw, prediction, start, order
 
     features = raw = prediction = start = order = None
     if plan is not None:
@@ -324,12 +351,14 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
             cell = next(order)
         return plan.X_WG, cell_parameters(cell)
 
-    # The next throw catches at the predicted cell; the wavefront search goes
-    # on. In first-throw mode, a failed catch from the predicted plan was
-    # still watched: the search starts again from the plan of what was seen
-    # of its flight (`throw_catch.seen_flight`), or, if that shows no
-    # reachable catch point, from a watching throw. At release, throw 1's
-    # plan (made during the throw, `plan_at_release`) starts the search.
+    # The next throw catches at the predicted cell; the search goes on (it
+    # is asked for a cell only after a failed throw, which the map prior
+    # takes into account). In first-throw mode, a failed catch from the
+    # predicted plan was still watched: the search starts again from the
+    # plan of what was seen of its flight (`throw_catch.seen_flight`), or,
+    # if that shows no reachable catch point, from a watching throw. At
+    # release, throw 1's plan (made during the throw, `plan_at_release`)
+    # starts the search.
     attempts, stopped, unplanned_sim_s = [], "exhausted", 0.0
     while True:
         cell = None if order is None else next(order, None)
@@ -433,7 +462,7 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
         start_cell=start, attempts=attempts, learned=learned,
         first_throw=first_throw, replanned=replanned,
         first_plan=None if first_plan is plan else first_plan,
-        at_release=at_release)
+        at_release=at_release, search=search)
 
 
 def _same_pose(a: CatchPlan, b: CatchPlan) -> bool:

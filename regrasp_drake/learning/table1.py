@@ -19,13 +19,16 @@ PAPER_TABLE1 = [
 def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
                map_workers: int = 2, progress=sys.stderr,
                flight_predictor=None, objects=None,
-               max_throws=None, at_release: bool = False) -> list[dict]:
+               max_throws=None, at_release: bool = False,
+               search: str = "wavefront") -> list[dict]:
     """Runs the learning phase on table1-row1 … row5 (or on `objects`, names
     of other catalogue objects); returns one row each. With maps_dir: also
     each object's full success map (resumable JSON lines) and a PNG of it
     with the network's start cell and the search path. flight_predictor:
     the first-throw mode (no watching throw); at_release: the first-throw
-    mode that plans each throw at its release."""
+    mode that plans each throw at its release; search: the learning phase's
+    search after the network's cell, "wavefront" (the paper's) or
+    "map-prior" (learning/search.py)."""
     from regrasp_drake import grid
     from regrasp_drake.learning.learning_phase import NoCatchPoint, learn
     from regrasp_drake.learning.library import load_library
@@ -46,12 +49,13 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
             result = learn(scenario, obj, model, ik=ik,
                            library_path=library_path, progress=progress,
                            flight_predictor=flight_predictor,
-                           max_throws=max_throws, at_release=at_release)
+                           max_throws=max_throws, at_release=at_release,
+                           search=search)
         except NoCatchPoint as e:  # the watching throw shows no catch point
             rows.append({"row": row, "object": obj.name,
                          "paper_object_id": obj_id,
                          "first_throw": first_throw,
-                         "at_release": at_release,
+                         "at_release": at_release, "search": search,
                          "density": obj.d_obj, "h_cm": obj.h_cm,
                          "r_cm": obj.r_cm, "caught": False,
                          "throws": e.throws, "stopped": "no_catch_point",
@@ -66,7 +70,7 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
         entry = {
             "row": row, "object": obj.name, "paper_object_id": obj_id,
             "first_throw": first_throw, "at_release": at_release,
-            "density": obj.d_obj, "h_cm": obj.h_cm, "r_cm": obj.r_cm,
+            "search": search, "density": obj.d_obj, "h_cm": obj.h_cm, "r_cm": obj.r_cm,
             "caught": result.caught, "throws": result.throws,
             "stopped": result.stopped, "replanned": result.replanned,
             "sim_time_s": round(result.sim_time_s, 2),
@@ -113,6 +117,10 @@ def format_markdown(rows: list[dict]) -> str:
             f"| {p['trials']} | {r['throws']} | {p['time_s']} "
             f"| {r['sim_time_s']:.1f} | {r['wall_s']:.1f} "
             f"| {'yes' if r['caught'] else 'no'} |")
+    searches = sorted({r.get("search", "wavefront") for r in rows})
+    if searches != ["wavefront"]:
+        lines += ["", f"Search after the network's cell: {', '.join(searches)}"
+                      " (the paper's is the wavefront)."]
     return "\n".join(lines)
 
 
