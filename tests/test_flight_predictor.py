@@ -270,6 +270,7 @@ class AtReleaseTest(unittest.TestCase):
         if r.caught:
             self.assertEqual(outcomes[-1], "caught")
             self.assertEqual(r.learned.throws, r.throws)
+            self.assertEqual(r.learned.mode, "at-release")
         else:
             self.assertEqual((r.throws, r.stopped), (2, "max_throws"))
             self.assertNotIn("caught", outcomes)

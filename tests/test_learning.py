@@ -140,6 +140,7 @@ class TestLearningPhase(unittest.TestCase):
         self.assertEqual(entry.throws, r["throws"])
         self.assertEqual(entry.catch_point, r["plan"]["catch_point"])
         self.assertEqual(entry.scenario, "defaults")
+        self.assertEqual((entry.mode, entry.search), ("watch", "wavefront"))
 
     def test_apply_catches_in_one_throw(self):
         self.assertEqual(self.applied.returncode, 0, self.applied.stderr)

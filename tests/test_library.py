@@ -36,7 +36,8 @@ def _entry(**changes) -> LearnedEntry:
         p_WG=X_WG.translation().tolist(),
         R_WG=X_WG.rotation().matrix().tolist(),
         q_grasp=[0.227, -0.26, -0.853, -1.522, -1.472, 4.252], side="paper",
-        h_catch=0.2, h_down=-0.05, cell=[4, 9], throws=2)
+        h_catch=0.2, h_down=-0.05, cell=[4, 9], throws=2, mode="watch",
+        search="wavefront")
     return dc.replace(entry, **changes)
 
 
@@ -126,6 +127,21 @@ class TestLibrary(unittest.TestCase):
             with self.subTest(field=field, value=value):
                 self._write_entry(**{field: value})
                 self._refused(f"objects.obj.{field}", str(value))
+
+    def test_mode_and_search_recorded_or_absent(self):
+        """An entry says how it was learned; an older entry without those
+        fields loads with None (not recorded); other values are refused."""
+        store(self.path, "new", _entry(mode="at-release", search="map-prior"))
+        loaded = load_library(self.path)["new"]
+        self.assertEqual((loaded.mode, loaded.search), ("at-release", "map-prior"))
+        self._write_entry(mode=None, search=None)
+        old = load_library(self.path)["obj"]
+        self.assertEqual((old.mode, old.search), (None, None))
+        self.assertEqual(old.h_catch, 0.2)
+        for field, value in (("mode", "guess"), ("search", "random")):
+            with self.subTest(field=field):
+                self._write_entry(**{field: value})
+                self._refused(f"objects.obj.{field}", value)
 
     def test_caught_on_the_first_throw_stored(self):
         """First-throw mode: an entry learned in 1 throw loads."""

@@ -318,6 +318,8 @@ class TestMapPriorLearningRun(unittest.TestCase):
         self.assertEqual(r.throws, 3)
         self.assertEqual(r.as_dict()["search"], "map-prior")
         self.assertEqual((r.learned.h_catch, r.learned.h_down), (0.40, -0.10))
+        self.assertEqual((r.learned.mode, r.learned.search),
+                         ("watch", "map-prior"))
         # The stored success map of table1-row2 (models/results/maps, from
         # the same watched plan) says the same of both cells.
         stored = {tuple(row["cell"]): row["outcome"] for row in map(

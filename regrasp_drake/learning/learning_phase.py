@@ -449,7 +449,9 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
             R_WG=plan.X_WG.rotation().matrix().tolist(),
             q_grasp=[float(x) for x in plan.q_grasp], side=plan.side,
             h_catch=last.h_catch, h_down=last.h_down, cell=list(last.cell),
-            throws=throws)
+            throws=throws, search=search,
+            mode=("at-release" if at_release else
+                  "first-throw" if first_throw else "watch"))
         if library_path is not None:
             lib.store(library_path, obj.name, learned)
     return LearningResult(

@@ -27,6 +27,14 @@ The file (default `regrasp_library.yaml` in the current directory):
         cell: [4, 9]                 # (i_catch, i_down) of the grid
         throws: 2                    # the learning phase's throws, the watch
                                      # included (1: caught on the first throw)
+        mode: watch                  # how the catch was planned: watch (a
+                                     # watching throw first), first-throw (the
+                                     # flight predictor) or at-release
+        search: wavefront            # the search after the network's cell:
+                                     # wavefront or map-prior
+
+`mode` and `search` were added after the first libraries were written: an
+entry without them reads them as None (not recorded).
 """
 
 import dataclasses as dc
@@ -42,6 +50,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 
 from regrasp_drake.errors import InputError, field_error
 from regrasp_drake.grid import H_CATCH_VALUES, H_DOWN_VALUES
+from regrasp_drake.learning.search import SEARCHES
 from regrasp_drake.station.scenario import H_CATCH_RANGE, H_DOWN_RANGE, Scenario
 
 DEFAULT_LIBRARY = Path("regrasp_library.yaml")
@@ -49,6 +58,9 @@ _FORMAT = "regrasp_drake.library"
 _VERSION = 1
 _FEATURES = ("h_cm", "r_cm", "d_obj", "v_conv")
 _CATCH_POINT = ("t_s", "p_WO", "axis_W", "v_catch", "tilt")
+MODES = ("watch", "first-throw", "at-release")
+# Fields an entry may lack (older libraries): they read as None.
+_OPTIONAL = ("mode", "search")
 
 
 @dc.dataclass
@@ -68,6 +80,8 @@ class LearnedEntry:
     h_down: float
     cell: list
     throws: int
+    mode: str | None = None    # one of MODES; None: not recorded
+    search: str | None = None  # wavefront or map-prior; None: not recorded
 
     @property
     def X_WG(self) -> RigidTransform:
@@ -153,7 +167,7 @@ def _entry(where: str, raw) -> LearnedEntry:
     if not isinstance(raw, dict):
         raise field_error(where, raw, "a mapping of the entry's fields")
     names = [f.name for f in dc.fields(LearnedEntry)]
-    missing = [n for n in names if n not in raw]
+    missing = [n for n in names if n not in raw and n not in _OPTIONAL]
     if missing:
         raise InputError(f"{where}.{missing[0]}: missing")
     unknown = sorted(set(raw) - set(names))
@@ -197,6 +211,10 @@ def _entry(where: str, raw) -> LearnedEntry:
     # First-throw mode can catch on throw 1 (no watching throw).
     if not (type(raw["throws"]) is int and raw["throws"] >= 1):
         raise field_error(f"{where}.throws", raw["throws"], "an integer >= 1")
+    for n, allowed in (("mode", MODES), ("search", SEARCHES)):
+        if raw.get(n) is not None and raw[n] not in allowed:
+            raise field_error(f"{where}.{n}", raw[n],
+                              f"one of {list(allowed)} (or absent)")
     return LearnedEntry(**raw)
 
 
