@@ -46,7 +46,11 @@ within 2-3 cells (0.909/0.920 vs 0.864/0.886) but needs more cells on average
 (3.71 vs 2.99, that same map). On the stored Table 1 maps, from the
 network's cells, table1-row4 takes 9 cells instead of 60 and the other rows
 1 with both; `regrasp-drake table1 --search map-prior` gave the same throws.
-`benchmarks/search_prior.py` recomputes these figures.
+`benchmarks/search_prior.py` recomputes these figures. In the other modes
+(models/results/*_prior.json): at release, table1-row4 in 9 throws (the
+wavefront: not within 8); on the held-out objects holdout-dumbbell-d300 in
+3 / 3 / 2 throws watching first / first-throw / at release (the wavefront
+6 / 6 / 5); every other object in as many throws as with the wavefront.
 """
 
 import zipfile
