@@ -11,11 +11,12 @@ models/results/ (no simulation):
                                search: "" (wavefront) | _prior (map-prior)
 
 and draws, per object, the throws each mode needed with each search (the
-watching throw counted; bars hatched where the object was not caught within
-the run's --max-throws, at that cap; the paper's throws for Table 1 as a
-line). Writes <out>.png and <out>.json (the same figures as a table). A
-results file that is missing is left out of the picture and named in the
-JSON's "missing" list; a malformed one is refused with one line naming it.
+watching throw counted; a bar hatched and marked ✗ where the object was not
+caught: the throws made until the run's --max-throws, or until no reachable
+catch point was left; the paper's throws for Table 1 as a line). Writes
+<out>.png and <out>.json (the same figures as a table). A results file
+that is missing is left out of the picture and named in the JSON's
+"missing" list; a malformed one is refused with one line naming it.
 """
 
 import argparse
@@ -113,7 +114,8 @@ def plot(rows: list[dict], path: Path) -> None:
     axes[-1].set_xticks(range(len(objects)))
     axes[-1].set_xticklabels(objects, rotation=30, ha="right", fontsize=8)
     fig.suptitle("Throws to the catch (watching throw counted; ✗ and "
-                 "hatched: not caught within the run's cap)")
+                 "hatched: not caught, throws made until the cap or no "
+                 "reachable catch point)")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
