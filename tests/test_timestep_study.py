@@ -1,0 +1,70 @@
+"""benchmarks/timestep_study.py: map agreement against chance, bad input."""
+
+import contextlib
+import importlib.util
+import io
+import unittest
+from pathlib import Path
+
+import numpy as np
+
+_PATH = Path(__file__).parents[1] / "benchmarks" / "timestep_study.py"
+_spec = importlib.util.spec_from_file_location("timestep_study", _PATH)
+study = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(study)
+
+
+class AgreementTest(unittest.TestCase):
+    def test_identical_maps_agree_everywhere(self):
+        a = np.zeros((10, 15), bool)
+        a[:4] = True
+        self.assertEqual(study.agreement(a, a)["same"], 150)
+        # 40 % caught: chance is 0.4² + 0.6² = 0.52 of 150 cells.
+        self.assertAlmostEqual(study.agreement(a, a)["chance"], 78.0)
+
+    def test_independent_maps_agree_about_by_chance(self):
+        rng = np.random.default_rng(0)
+        same, chance = [], []
+        for _ in range(200):
+            r = study.agreement(rng.random((10, 15)) < 0.3,
+                                rng.random((10, 15)) < 0.6)
+            same.append(r["same"])
+            chance.append(r["chance"])
+        # 0.3·0.6 + 0.7·0.4 = 0.46 of the cells, 69 of 150.
+        self.assertAlmostEqual(np.mean(chance), 69.0, delta=1.5)
+        self.assertAlmostEqual(np.mean(same), np.mean(chance), delta=1.5)
+
+    def test_summary_orders_pairs_by_the_steps_given(self):
+        full = np.ones((10, 15), int).tolist()
+        empty = np.zeros((10, 15), int).tolist()
+        results = {"x": {1.0: {"caught": full}, 0.5: {"caught": empty}}}
+        s = study.summarize(results, [1.0, 0.5])["objects"]["x"]
+        self.assertEqual(s["agreement_same"], [[150, 0], [0, 150]])
+        self.assertEqual(s["agreement_chance"], [[150.0, 0.0], [0.0, 150.0]])
+        self.assertEqual(list(s["by_step"]), ["1", "0.5"])
+
+
+class BadInputTest(unittest.TestCase):
+    def _run(self, *argv):
+        err = io.StringIO()
+        with contextlib.redirect_stderr(err):
+            code = study.main(list(argv))
+        return code, err.getvalue()
+
+    def test_step_off_the_sensor_period_refused_naming_it(self):
+        code, err = self._run("--steps-ms", "0.3")
+        self.assertEqual(code, 2)
+        self.assertIn("--steps-ms 0.3", err)
+        self.assertIn("sensors.period_s", err)
+
+    def test_step_out_of_range_and_unknown_object_refused(self):
+        code, err = self._run("--steps-ms", "7")
+        self.assertEqual(code, 2)
+        self.assertIn("time_step_s: got 0.007", err)
+        code, err = self._run("--objects", "no-such-object")
+        self.assertEqual(code, 2)
+        self.assertIn("'no-such-object'", err)
+
+
+if __name__ == "__main__":
+    unittest.main()
