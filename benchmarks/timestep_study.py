@@ -56,46 +56,90 @@ def release_state(scenario, obj, logs) -> dict:
             "w_O": [round(float(c), 4) for c in R_WO.T @ x[7:10]]}
 
 
-def run_object_step(name, step_ms, out_dir: Path, workers: int) -> dict:
-    """The watch, the plan and the success map of one object at one step."""
+def _scenario(step_ms):
     import dataclasses as dc
 
-    from regrasp_drake.grid import run_map
-    from regrasp_drake.planning.ik import ArmIk
     from regrasp_drake.station.scenario import load_scenario, validate
+    return validate(dc.replace(load_scenario(), time_step_s=step_ms / 1e3))
+
+
+def flight(name, step_ms):
+    """The watching throw at one step: the release state and the planned
+    catch (catch_point None when no moment is reachable); also returns the
+    plan, for the map."""
+    from regrasp_drake.errors import InputError
+    from regrasp_drake.planning.ik import ArmIk
     from regrasp_drake.throw_catch import plan_catch, watch
     from regrasp_drake.world.objects import resolve_object
-    scenario = validate(dc.replace(load_scenario(), time_step_s=step_ms / 1e3))
-    obj = resolve_object(name=name)
-    ik = ArmIk()
+    scenario, obj, ik = _scenario(step_ms), resolve_object(name=name), ArmIk()
     watched = watch(scenario, obj, ik)
-    plan = plan_catch(scenario, obj, ik, watched)
-    rows = run_map(scenario, obj, ik, plan,
-                   out_dir / f"{name}_{step_ms:g}ms.jsonl", workers=workers)
-    caught = np.zeros((10, 15), bool)
-    for cell, row in rows.items():
-        caught[cell] = row["outcome"] == "caught"
+    row = {"object": name, "step_ms": step_ms,
+           "release": release_state(scenario, obj, watched.logs),
+           "catch_point": None}
+    try:
+        plan = plan_catch(scenario, obj, ik, watched)
+    except InputError:
+        return row, None
     cp = plan.catch_point
-    return {"release": release_state(scenario, obj, watched.logs),
-            "catch_point": {"t_s": round(cp.t_s, 4),
-                            "p_WO": [round(float(c), 4) for c in cp.p_WO],
-                            "tilt": round(float(cp.tilt), 4),
-                            "v_catch": round(float(cp.v_catch), 4)},
-            "cells_caught": int(caught.sum()),
-            "caught": caught.astype(int).tolist()}
+    row["catch_point"] = {"t_s": round(cp.t_s, 4),
+                          "p_WO": [round(float(c), 4) for c in cp.p_WO],
+                          "tilt": round(float(cp.tilt), 4),
+                          "v_catch": round(float(cp.v_catch), 4)}
+    return row, (scenario, obj, ik, plan)
+
+
+def _flight_row(task):
+    return flight(*task)[0]
+
+
+def success_map(name, step_ms, out_dir: Path, workers: int) -> dict:
+    """The flight and the 150-cell success map of one object at one step."""
+    from regrasp_drake.grid import run_map
+    row, setup = flight(name, step_ms)
+    if setup is None:
+        raise SystemExit(f"timestep_study: error: {name} at {step_ms:g} ms: "
+                         "no reachable catch point, no map")
+    rows = run_map(*setup, out_dir / f"{name}_{step_ms:g}ms.jsonl",
+                   workers=workers)
+    caught = np.zeros((10, 15), bool)
+    for cell, cell_row in rows.items():
+        caught[cell] = cell_row["outcome"] == "caught"
+    return row | {"cells_caught": int(caught.sum()),
+                  "caught": caught.astype(int).tolist()}
+
+
+def _shift(row, finest) -> dict:
+    """How far `row`'s release spin and catch moment are from the finest
+    step's."""
+    out = {"w_O_rad_per_s": round(float(np.linalg.norm(
+        np.subtract(row["release"]["w_O"], finest["release"]["w_O"]))), 3)}
+    a, b = row["catch_point"], finest["catch_point"]
+    if a and b:
+        out["catch_t_ms"] = round(1e3 * (a["t_s"] - b["t_s"]), 1)
+        out["catch_p_mm"] = round(1e3 * float(np.linalg.norm(
+            np.subtract(a["p_WO"], b["p_WO"]))), 1)
+    return out
 
 
 def summarize(results: dict, steps_ms) -> dict:
-    """results[name][step] as run_object_step's; adds the pairwise agreement
-    of the maps (steps in the order given)."""
+    """results[name][step] as flight's rows (with success_map's fields when
+    maps were run). Adds each step's shift from the finest step and, with
+    maps, the pairwise agreement of the maps (steps in the order given)."""
+    finest = min(steps_ms)
     summary = {"steps_ms": list(steps_ms), "objects": {}}
     for name, by_step in results.items():
-        maps = [np.array(by_step[s]["caught"], bool) for s in steps_ms]
-        pairs = [[agreement(a, b) for b in maps] for a in maps]
-        summary["objects"][name] = {
-            "by_step": {f"{s:g}": by_step[s] for s in steps_ms},
-            "agreement_same": [[p["same"] for p in row] for row in pairs],
-            "agreement_chance": [[p["chance"] for p in row] for row in pairs]}
+        s = summary["objects"][name] = {
+            "by_step": {f"{step:g}": by_step[step] for step in steps_ms},
+            "shift_from_finest": {f"{step:g}": _shift(by_step[step],
+                                                      by_step[finest])
+                                  for step in steps_ms}}
+        if all("caught" in by_step[step] for step in steps_ms):
+            maps = [np.array(by_step[step]["caught"], bool)
+                    for step in steps_ms]
+            pairs = [[agreement(a, b) for b in maps] for a in maps]
+            s["agreement_same"] = [[p["same"] for p in row] for row in pairs]
+            s["agreement_chance"] = [[p["chance"] for p in row]
+                                     for row in pairs]
     return summary
 
 
@@ -103,19 +147,18 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--objects", nargs="+", default=_OBJECTS)
     parser.add_argument("--steps-ms", type=float, nargs="+", default=_STEPS_MS)
+    parser.add_argument("--flights-only", action="store_true",
+                        help="the watching throws only, no success maps")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path,
                         default=Path("benchmarks/timestep_study"))
     args = parser.parse_args(argv)
-    import dataclasses as dc
-
     from regrasp_drake.errors import InputError
-    from regrasp_drake.station.scenario import load_scenario, validate
     from regrasp_drake.world.objects import resolve_object
     try:
         for step in args.steps_ms:
             try:
-                validate(dc.replace(load_scenario(), time_step_s=step / 1e3))
+                _scenario(step)
             except InputError as e:
                 raise InputError(f"--steps-ms {step:g}: {e}") from None
         for name in args.objects:
@@ -128,17 +171,30 @@ def main(argv=None) -> int:
     import torch
     torch.set_num_threads(1)
     args.out.mkdir(parents=True, exist_ok=True)
-    results = {}
-    for name in args.objects:
-        results[name] = {}
-        for step in args.steps_ms:
-            print(f"{name}, step {step:g} ms", file=sys.stderr)
-            results[name][step] = run_object_step(name, step, args.out,
+    results = {name: {} for name in args.objects}
+    if args.flights_only:
+        from regrasp_drake.grid import append_rows, read_rows
+        lines = args.out / "flights.jsonl"
+        key = lambda row: (row["object"], row["step_ms"])  # noqa: E731
+        done = read_rows(lines, key=key)
+        tasks = [(name, step) for name in args.objects
+                 for step in args.steps_ms if (name, step) not in done]
+        append_rows(_flight_row, tasks, lines, done, key,
+                    workers=args.workers, label="flights", unit="throws")
+        for (name, step), row in done.items():
+            if name in results and step in args.steps_ms:
+                results[name][step] = row
+    else:
+        for name in args.objects:
+            for step in args.steps_ms:
+                print(f"{name}, step {step:g} ms", file=sys.stderr)
+                results[name][step] = success_map(name, step, args.out,
                                                   args.workers)
     summary = summarize(results, args.steps_ms)
     args.out.with_suffix(".json").write_text(json.dumps(summary) + "\n")
     _print(summary)
-    _plot(summary, args.out.with_suffix(".png"))
+    (_plot_flights if args.flights_only else _plot_maps)(
+        summary, args.out.with_suffix(".png"))
     return 0
 
 
@@ -148,17 +204,25 @@ def _print(summary):
         print(f"\n{name}")
         for i, step in enumerate(steps):
             b = s["by_step"][f"{step:g}"]
-            cp, rel = b["catch_point"], b["release"]
-            same = " ".join(f"{n:>3}/{c:>5.1f}" for n, c in zip(
-                s["agreement_same"][i], s["agreement_chance"][i]))
-            print(f"  {step:>5g} ms: {b['cells_caught']:>3}/150 catch; "
-                  f"catch at t {cp['t_s']:.3f} s, tilt {cp['tilt']:.2f}, "
-                  f"v {cp['v_catch']:.2f} m/s; w_O at release "
-                  f"{np.round(rel['w_O'], 2)} rad/s; same cells / chance "
-                  f"vs each step: {same}")
+            shift = s["shift_from_finest"][f"{step:g}"]
+            cp = b["catch_point"]
+            line = (f"  {step:>6g} ms: w_O at release "
+                    f"{np.round(b['release']['w_O'], 2)} rad/s "
+                    f"({shift['w_O_rad_per_s']:.2f} from the finest step); ")
+            line += ("no reachable catch point" if cp is None else
+                     f"catch at t {cp['t_s']:.3f} s, tilt {cp['tilt']:.2f}, "
+                     f"v {cp['v_catch']:.2f} m/s")
+            if "catch_p_mm" in shift:
+                line += f" ({shift['catch_p_mm']:.0f} mm from the finest)"
+            if "agreement_same" in s:
+                same = " ".join(f"{n:>3}/{c:>5.1f}" for n, c in zip(
+                    s["agreement_same"][i], s["agreement_chance"][i]))
+                line += (f"; {b['cells_caught']:>3}/150 catch; same cells / "
+                         f"chance vs each step: {same}")
+            print(line)
 
 
-def _plot(summary, path):
+def _plot_maps(summary, path):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -169,13 +233,13 @@ def _plot(summary, path):
                              squeeze=False)
     for row, name in zip(axes, names):
         s = summary["objects"][name]
-        for i, (ax, step) in enumerate(zip(row, steps)):
+        for ax, step in zip(row, steps):
             b = s["by_step"][f"{step:g}"]
             ax.imshow(np.array(b["caught"]), origin="lower", cmap="Greens",
                       vmin=0, vmax=1.3, extent=(-14.5, 0.5, 0.02, 0.42),
                       aspect="auto")
-            ax.set_title(f"{name}, {step:g} ms\n{b['cells_caught']}/150, tilt "
-                         f"{b['catch_point']['tilt']:.2f}", fontsize=8)
+            ax.set_title(f"{name}, {step:g} ms\n{b['cells_caught']}/150, "
+                         f"catch t {b['catch_point']['t_s']:.3f} s", fontsize=8)
             ax.set_xlabel("h_down (cm)", fontsize=7)
             ax.set_ylabel("h_catch (m)", fontsize=7)
             ax.tick_params(labelsize=6)
@@ -186,12 +250,38 @@ def _plot(summary, path):
         ax.bar(x - 0.2, same, 0.4, label="same outcome")
         ax.bar(x + 0.2, chance, 0.4, color="lightgray", label="chance")
         ax.set_xticks(x, [f"{a:g}-{b:g}" for a, b in zip(steps, steps[1:])],
-                      fontsize=7)
+                      fontsize=6)
         ax.set_xlabel("step pair (ms)", fontsize=7)
         ax.set_ylim(0, 150)
         ax.set_title("cells agreeing, neighbouring steps", fontsize=8)
         ax.legend(fontsize=6)
     fig.suptitle("Success maps against the plant's time step (green: caught)",
+                 fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def _plot_flights(summary, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    steps = summary["steps_ms"]
+    coarse = f"{max(steps):g}"
+    names = sorted(summary["objects"], key=lambda n: summary["objects"][n][
+        "shift_from_finest"][coarse]["w_O_rad_per_s"])
+    shifts = [summary["objects"][n]["shift_from_finest"][coarse]
+              for n in names]
+    fig, axes = plt.subplots(2, 1, figsize=(max(6, 0.16 * len(names)), 6),
+                             sharex=True)
+    x = np.arange(len(names))
+    axes[0].bar(x, [s["w_O_rad_per_s"] for s in shifts])
+    axes[0].set_ylabel("|Δ w_O| at release (rad/s)", fontsize=8)
+    axes[1].bar(x, [s.get("catch_p_mm", np.nan) for s in shifts],
+                color="tab:orange")
+    axes[1].set_ylabel("catch point moved (mm)", fontsize=8)
+    axes[1].set_xticks(x, names, rotation=90, fontsize=6)
+    fig.suptitle(f"Watching throw at {coarse} ms against {min(steps):g} ms",
                  fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=100)

@@ -35,13 +35,31 @@ class AgreementTest(unittest.TestCase):
         self.assertAlmostEqual(np.mean(same), np.mean(chance), delta=1.5)
 
     def test_summary_orders_pairs_by_the_steps_given(self):
-        full = np.ones((10, 15), int).tolist()
-        empty = np.zeros((10, 15), int).tolist()
-        results = {"x": {1.0: {"caught": full}, 0.5: {"caught": empty}}}
+        def row(caught, w_O, t_s, x):
+            return {"release": {"w_O": w_O},
+                    "catch_point": {"t_s": t_s, "p_WO": [x, 0.0, 0.8]},
+                    "caught": np.full((10, 15), caught, int).tolist()}
+        results = {"x": {1.0: row(1, [0.0, 3.0, 4.0], 1.336, 0.90),
+                         0.5: row(0, [0.0, 0.0, 0.0], 1.340, 0.88)}}
         s = study.summarize(results, [1.0, 0.5])["objects"]["x"]
         self.assertEqual(s["agreement_same"], [[150, 0], [0, 150]])
         self.assertEqual(s["agreement_chance"], [[150.0, 0.0], [0.0, 150.0]])
         self.assertEqual(list(s["by_step"]), ["1", "0.5"])
+        # Shifts are from the finest step, 0.5 ms: |(0, 3, 4)| = 5 rad/s,
+        # 4 ms earlier, 20 mm along x.
+        self.assertEqual(s["shift_from_finest"]["1"],
+                         {"w_O_rad_per_s": 5.0, "catch_t_ms": -4.0,
+                          "catch_p_mm": 20.0})
+        self.assertEqual(s["shift_from_finest"]["0.5"]["w_O_rad_per_s"], 0.0)
+
+    def test_flights_without_maps_or_catch_points_have_no_agreement(self):
+        results = {"x": {1.0: {"release": {"w_O": [1.0, 0.0, 0.0]},
+                               "catch_point": None},
+                         0.25: {"release": {"w_O": [0.0, 0.0, 0.0]},
+                                "catch_point": None}}}
+        s = study.summarize(results, [1.0, 0.25])["objects"]["x"]
+        self.assertNotIn("agreement_same", s)
+        self.assertEqual(s["shift_from_finest"]["1"], {"w_O_rad_per_s": 1.0})
 
 
 class BadInputTest(unittest.TestCase):
