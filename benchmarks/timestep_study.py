@@ -1,7 +1,7 @@
 """Do success maps converge as the plant's time step shrinks?
 
     .venv/bin/python benchmarks/timestep_study.py [--objects table1-row2 …]
-        [--steps-ms 2 1 0.5 0.25 0.125] [--workers 2]
+        [--steps-ms 2 1 0.5 0.25 0.125] [--flights-only] [--workers 2]
         [--out benchmarks/timestep_study]
 
 For each object and each time step (the shipped scenario with only
@@ -18,7 +18,9 @@ its neighbours no better than chance.
 
 Writes <out>/<object>_<step>ms.jsonl (one line per cell, as it finishes; a
 rerun resumes), <out>.json (the figures) and <out>.png (every map, and the
-agreements against chance).
+agreements against chance). With --flights-only: the watching throws alone,
+`workers` at a time, into <out>/flights.jsonl (resumable), and a PNG of each
+object's spin and catch-point shift between the coarsest and finest steps.
 """
 
 import argparse
