@@ -107,7 +107,35 @@ def success_map(name, step_ms, out_dir: Path, workers: int) -> dict:
     for cell, cell_row in rows.items():
         caught[cell] = cell_row["outcome"] == "caught"
     return row | {"cells_caught": int(caught.sum()),
-                  "caught": caught.astype(int).tolist()}
+                  "caught": caught.astype(int).tolist(),
+                  "table1": table1_throws(setup[1], setup[3], caught)}
+
+
+def table1_throws(obj, plan, caught) -> dict:
+    """What the learning phase would count on this map, offline: the shipped
+    network's cell for this step's catch point (its v_catch), then each
+    search's cells until one catches in `caught`; throws include the watch
+    (None: no cell catches)."""
+    from regrasp_drake.grid import nearest_cell
+    from regrasp_drake.learning.learning_phase import network_features, predict
+    from regrasp_drake.learning.search import (
+        attempts_to_catch,
+        load_prior_maps,
+        map_prior_order,
+        wavefront_order,
+    )
+    from regrasp_drake.paths import MODELS_DIR
+    from regrasp_drake.station.mlp_system import load_weights
+    model, _ = load_weights(MODELS_DIR / "catch_mlp.pt")
+    start = nearest_cell(*predict(model, network_features(
+        obj, plan.catch_point))[1])
+    out = {"network_cell": list(start)}
+    for search, order in (
+            ("wavefront", wavefront_order(start)),
+            ("map_prior", map_prior_order(start, load_prior_maps()[1]))):
+        n = attempts_to_catch(order, caught)
+        out[f"throws_{search}"] = None if n is None else n + 1
+    return out
 
 
 def _shift(row, finest) -> dict:
@@ -216,6 +244,11 @@ def _print(summary):
                      f"v {cp['v_catch']:.2f} m/s")
             if "catch_p_mm" in shift:
                 line += f" ({shift['catch_p_mm']:.0f} mm from the finest)"
+            if "table1" in b:
+                t = b["table1"]
+                line += (f"; network cell {tuple(t['network_cell'])}, "
+                         f"throws {t['throws_wavefront']} (wavefront), "
+                         f"{t['throws_map_prior']} (map prior)")
             if "agreement_same" in s:
                 same = " ".join(f"{n:>3}/{c:>5.1f}" for n, c in zip(
                     s["agreement_same"][i], s["agreement_chance"][i]))

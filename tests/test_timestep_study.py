@@ -5,6 +5,7 @@ import importlib.util
 import io
 import unittest
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -60,6 +61,38 @@ class AgreementTest(unittest.TestCase):
         s = study.summarize(results, [1.0, 0.25])["objects"]["x"]
         self.assertNotIn("agreement_same", s)
         self.assertEqual(s["shift_from_finest"]["1"], {"w_O_rad_per_s": 1.0})
+
+
+class Table1ThrowsTest(unittest.TestCase):
+    """The offline Table 1 count on a map: the watch, then the shipped
+    network's cell, then each search's cells until one catches."""
+
+    def setUp(self):
+        from regrasp_drake.world.objects import load_catalogue
+        self.obj = load_catalogue()["table1-row4"]
+        # table1-row4's catch point at 1 ms (models/results/table1.json).
+        self.plan = SimpleNamespace(catch_point=SimpleNamespace(
+            v_catch=-3.6873))
+
+    def test_catch_in_the_network_cell_is_two_throws(self):
+        start = study.table1_throws(self.obj, self.plan,
+                                    np.zeros((10, 15), bool))["network_cell"]
+        self.assertEqual(start, [9, 0])  # as Table 1's run at 1 ms
+        caught = np.zeros((10, 15), bool)
+        caught[tuple(start)] = True
+        t = study.table1_throws(self.obj, self.plan, caught)
+        self.assertEqual((t["throws_wavefront"], t["throws_map_prior"]),
+                         (2, 2))
+
+    def test_far_catching_cell_and_no_catching_cell(self):
+        caught = np.zeros((10, 15), bool)
+        caught[0, 14] = True  # ring 14 from (9, 0): the wavefront's last
+        t = study.table1_throws(self.obj, self.plan, caught)
+        self.assertEqual(t["throws_wavefront"], 151)
+        self.assertLessEqual(t["throws_map_prior"], 151)
+        t = study.table1_throws(self.obj, self.plan, np.zeros((10, 15), bool))
+        self.assertIsNone(t["throws_wavefront"])
+        self.assertIsNone(t["throws_map_prior"])
 
 
 class BadInputTest(unittest.TestCase):
