@@ -14,7 +14,10 @@ p·q + (1 − p)·(1 − q) of the cells.
 
 A map that is a converged function of the physics agrees more and more
 closely as the step halves; one decided by the discretization agrees with
-its neighbours no better than chance.
+its neighbours no better than chance. For each map also the throws the
+learning phase would count on it, offline: the watch, the shipped network's
+cell for that step's catch point, then the wavefront's or the map prior's
+cells up to the first that catches.
 
 Writes <out>/<object>_<step>ms.jsonl (one line per cell, as it finishes; a
 rerun resumes), <out>.json (the figures) and <out>.png (every map, and the
@@ -94,7 +97,7 @@ def _flight_row(task):
     return flight(*task)[0]
 
 
-def success_map(name, step_ms, out_dir: Path, workers: int) -> dict:
+def map_at_step(name, step_ms, out_dir: Path, workers: int) -> dict:
     """The flight and the 150-cell success map of one object at one step."""
     from regrasp_drake.grid import run_map
     row, setup = flight(name, step_ms)
@@ -152,7 +155,7 @@ def _shift(row, finest) -> dict:
 
 
 def summarize(results: dict, steps_ms) -> dict:
-    """results[name][step] as flight's rows (with success_map's fields when
+    """results[name][step] as flight's rows (with map_at_step's fields when
     maps were run). Adds each step's shift from the finest step and, with
     maps, the pairwise agreement of the maps (steps in the order given)."""
     finest = min(steps_ms)
@@ -218,7 +221,7 @@ def main(argv=None) -> int:
         for name in args.objects:
             for step in args.steps_ms:
                 print(f"{name}, step {step:g} ms", file=sys.stderr)
-                results[name][step] = success_map(name, step, args.out,
+                results[name][step] = map_at_step(name, step, args.out,
                                                   args.workers)
     summary = summarize(results, args.steps_ms)
     args.out.with_suffix(".json").write_text(json.dumps(summary) + "\n")
