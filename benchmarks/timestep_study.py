@@ -97,15 +97,24 @@ def _flight_row(task):
     return flight(*task)[0]
 
 
-def map_at_step(name, step_ms, out_dir: Path, workers: int) -> dict:
-    """The flight and the 150-cell success map of one object at one step."""
+def map_at_step(name, step_ms, out_dir: Path, workers: int,
+                throw_step_ms=None) -> dict:
+    """The flight and the 150-cell success map of one object at one step.
+    With `throw_step_ms`: the watch, the plan and every catching throw up to
+    the throw's end at that step, the rest of each catch at `step_ms`."""
     from regrasp_drake.grid import run_map
-    row, setup = flight(name, step_ms)
+    row, setup = flight(name, throw_step_ms or step_ms)
     if setup is None:
-        raise SystemExit(f"timestep_study: error: {name} at {step_ms:g} ms: "
-                         "no reachable catch point, no map")
-    rows = run_map(*setup, out_dir / f"{name}_{step_ms:g}ms.jsonl",
-                   workers=workers)
+        raise SystemExit(f"timestep_study: error: {name} at "
+                         f"{throw_step_ms or step_ms:g} ms: no reachable catch "
+                         "point, no map")
+    path = out_dir / f"{name}_{step_ms:g}ms.jsonl"
+    handoff = None
+    if throw_step_ms:
+        path = out_dir / f"{name}_{step_ms:g}ms_throw{throw_step_ms:g}ms.jsonl"
+        throw = setup[0].throw
+        handoff = (throw.settle_s + throw.knot_times_s[-1], _scenario(step_ms))
+    rows = run_map(*setup, path, workers=workers, handoff=handoff)
     caught = np.zeros((10, 15), bool)
     for cell, cell_row in rows.items():
         caught[cell] = cell_row["outcome"] == "caught"
@@ -182,6 +191,9 @@ def main(argv=None) -> int:
     parser.add_argument("--steps-ms", type=float, nargs="+", default=_STEPS_MS)
     parser.add_argument("--flights-only", action="store_true",
                         help="the watching throws only, no success maps")
+    parser.add_argument("--throw-step-ms", type=float,
+                        help="simulate every throw to its end at this step, "
+                             "only the catch at each of --steps-ms")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path,
                         default=Path("benchmarks/timestep_study"))
@@ -189,11 +201,16 @@ def main(argv=None) -> int:
     from regrasp_drake.errors import InputError
     from regrasp_drake.world.objects import resolve_object
     try:
-        for step in args.steps_ms:
-            try:
-                _scenario(step)
-            except InputError as e:
-                raise InputError(f"--steps-ms {step:g}: {e}") from None
+        for flag, steps in (("--steps-ms", args.steps_ms),
+                            ("--throw-step-ms", [args.throw_step_ms or 1.0])):
+            for step in steps:
+                try:
+                    _scenario(step)
+                except InputError as e:
+                    raise InputError(f"{flag} {step:g}: {e}") from None
+        if args.throw_step_ms and args.flights_only:
+            raise InputError("--throw-step-ms: a catch-only study needs maps, "
+                             "not --flights-only")
         for name in args.objects:
             resolve_object(name=name)
         if args.workers < 1:
@@ -221,9 +238,10 @@ def main(argv=None) -> int:
         for name in args.objects:
             for step in args.steps_ms:
                 print(f"{name}, step {step:g} ms", file=sys.stderr)
-                results[name][step] = map_at_step(name, step, args.out,
-                                                  args.workers)
-    summary = summarize(results, args.steps_ms)
+                results[name][step] = map_at_step(
+                    name, step, args.out, args.workers, args.throw_step_ms)
+    summary = summarize(results, args.steps_ms) | {
+        "throw_step_ms": args.throw_step_ms}
     args.out.with_suffix(".json").write_text(json.dumps(summary) + "\n")
     _print(summary)
     (_plot_flights if args.flights_only else _plot_maps)(
@@ -293,8 +311,10 @@ def _plot_maps(summary, path):
         ax.set_ylim(0, 150)
         ax.set_title("cells agreeing, neighbouring steps", fontsize=8)
         ax.legend(fontsize=6)
-    fig.suptitle("Success maps against the plant's time step (green: caught)",
-                 fontsize=9)
+    throw = summary.get("throw_step_ms")
+    fig.suptitle("Success maps against the plant's time step (green: caught)"
+                 + (f"; every throw at {throw:g} ms, only the catch at the "
+                    "step" if throw else ""), fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)

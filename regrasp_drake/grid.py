@@ -94,13 +94,14 @@ def append_rows(function, tasks, path: Path, done: dict, key, *,
 
 
 def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
-            progress=True, only=None) -> dict:
+            progress=True, only=None, handoff=None) -> dict:
     """Runs every cell of `obj`'s success map not yet in `out` (JSON lines,
     appended and flushed as each cell finishes); returns {cell: row}.
 
     The cells share one simulated throw up to their triggers (see
     station/branching.py); `workers` simulations run at once. `only`: a
-    subset of the cells (a coarse map), default all."""
+    subset of the cells (a coarse map), default all. `handoff`: see
+    branching.run_cells."""
     from regrasp_drake.station.branching import run_cells
     out = Path(out)
     done = read_rows(out)
@@ -121,7 +122,7 @@ def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
                           start, obj.name)
         run_cells(scenario, obj, ik=ik, X_WG=plan.X_WG,
                   parameters=[cell_parameters(c) for c in todo],
-                  workers=workers, on_result=write)
+                  workers=workers, on_result=write, handoff=handoff)
     if progress:
         print(file=sys.stderr)
     return done

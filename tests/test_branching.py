@@ -46,6 +46,27 @@ class RunCellsTest(unittest.TestCase):
             outcomes.add(row["outcome"])
         self.assertEqual(outcomes, {"caught", "dropped"})
 
+    def test_handoff_to_the_same_scenario_changes_nothing(self):
+        # Handing the simulation over to a station built alike, when the
+        # throw ends, goes on bit for bit.
+        parameters = [(0.40, -0.05), (0.08, -0.13), (0.20, 0.0)]
+        t_end = (self.scenario.throw.settle_s
+                 + self.scenario.throw.knot_times_s[-1])
+        kwargs = dict(ik=self.ik, X_WG=self.plan.X_WG, parameters=parameters)
+        plain = run_cells(self.scenario, self.obj, **kwargs)
+        handed = run_cells(self.scenario, self.obj, **kwargs,
+                           handoff=(t_end, self.scenario))
+        for a, b in zip(plain, handed):
+            self.assertEqual((a["outcome"], a["sim_time_s"], a["catch_time_s"]),
+                             (b["outcome"], b["sim_time_s"], b["catch_time_s"]))
+            np.testing.assert_array_equal(a["p_WO_final"], b["p_WO_final"])
+
+    def test_handoff_after_the_hand_waits_refused(self):
+        with self.assertRaisesRegex(ValueError, "already waits"):
+            run_cells(self.scenario, self.obj, ik=self.ik,
+                      X_WG=self.plan.X_WG, parameters=[(0.2, -0.05)],
+                      handoff=(1.3, self.scenario))
+
 
 if __name__ == "__main__":
     unittest.main()

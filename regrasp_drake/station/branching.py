@@ -29,11 +29,15 @@ import numpy as np
 
 from regrasp_drake.station.catch_state_machine import Phase
 from regrasp_drake.station.episode import advance_to_outcome, read_outcome
-from regrasp_drake.station.station import build_station, initialize
+from regrasp_drake.station.station import (
+    build_station,
+    continue_with,
+    initialize,
+)
 
 
 def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
-              on_result=None) -> list[dict]:
+              on_result=None, handoff=None) -> list[dict]:
     """Runs one catch episode per (h_catch, h_down) in `parameters`.
 
     Returns one dict per entry, in order: h_catch, h_down, outcome,
@@ -41,15 +45,32 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
     shared run's for cells that never triggered), p_WO_final (the object's
     final position, m). `on_result(i, row)` is
     called as each cell finishes. At most `workers` children run at once.
+    `handoff`: (t_s, other scenario), to simulate up to t_s under `scenario`
+    and from there under the other (benchmarks/timestep_study.py: the same
+    throw, caught at another plant time step); t_s must come before any
+    cell's trigger.
     """
     t0 = time.perf_counter()
     parameters = [(float(h), float(d)) for h, d in parameters]
     station = build_station(scenario, obj, ik=ik, X_WG=X_WG,
                             catch_parameters=(0.0, 0.0))
+    simulator = initialize(station, scenario)
+    if handoff is not None:
+        t_handoff, later = handoff
+        advance_to_outcome(simulator, station, scenario, t_handoff)
+        phase = station.state_machine.GetOutputPort("phase").Eval(
+            station.state_machine.GetMyContextFromRoot(
+                simulator.get_context()))[0]
+        if phase >= Phase.WAIT:
+            raise ValueError(f"handoff at t = {t_handoff} s: the hand already "
+                             "waits (a cell may have triggered)")
+        other = build_station(later, obj, ik=ik, X_WG=X_WG,
+                              catch_parameters=(0.0, 0.0))
+        simulator = continue_with(simulator, station, other, later)
+        station, scenario = other, later
     source = station.diagram.GetSubsystemByName("catch_parameters")
     ir = station.diagram.GetSubsystemByName("infrared")
     machine = station.state_machine
-    simulator = initialize(station, scenario)
     context = simulator.get_mutable_context()
     ir_context = ir.GetMyContextFromRoot(context)
     machine_context = machine.GetMyContextFromRoot(context)
@@ -102,7 +123,7 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
         children[pid] = (read_fd, group)
 
     message = ""
-    k = 0
+    k = round(context.get_time() / period)  # 0, or the handoff's sample
     while waiting:
         k += 1
         message = advance_to_outcome(simulator, station, scenario,

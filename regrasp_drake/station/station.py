@@ -19,6 +19,7 @@ from pydrake.geometry import (
     MeshcatVisualizerParams,
     ProximityProperties,
     RoleAssign,
+    SceneGraph,
 )
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import (
@@ -27,7 +28,7 @@ from pydrake.multibody.plant import (
     MultibodyPlant,
     MultibodyPlantConfig,
 )
-from pydrake.systems.analysis import Simulator
+from pydrake.systems.analysis import InitializeParams, Simulator
 from pydrake.systems.controllers import InverseDynamicsController
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput
@@ -316,3 +317,36 @@ def initialize(station: Station, scenario: Scenario) -> Simulator:
                           station.X_WO_initial)
     simulator.Initialize()
     return simulator
+
+
+def continue_with(simulator: Simulator, station: Station, other: Station,
+                  scenario: Scenario) -> Simulator:
+    """A simulator of `other`, a station built like `station` but for
+    `scenario` (another plant time step, say), at `simulator`'s time and
+    state: the plant's, the controller's and every system's of ours.
+    SceneGraph's state is not copied (it holds the other diagram's geometry
+    ids; its poses follow the plant's state). Continuing with `other` built
+    for the same scenario reproduces `simulator`'s run bit for bit."""
+    source = simulator.get_context()
+    target = Simulator(other.diagram)
+    context = target.get_mutable_context()
+    context.SetTime(source.get_time())
+    for a, b in zip(station.diagram.GetSystems(), other.diagram.GetSystems()):
+        if type(a) is not type(b):
+            raise ValueError(f"continue_with: {a.get_name()} and "
+                             f"{b.get_name()}: not stations built alike")
+        if isinstance(a, SceneGraph):
+            continue
+        context_a = a.GetMyContextFromRoot(source)
+        context_b = b.GetMyMutableContextFromRoot(context)
+        for i in range(context_a.num_discrete_state_groups()):
+            context_b.SetDiscreteState(i, context_a.get_discrete_state(i).value())
+        for i in range(context_a.num_abstract_states()):
+            context_b.get_mutable_abstract_state(i).SetFrom(
+                context_a.get_abstract_state(i))
+        if context_a.num_continuous_states():
+            context_b.SetContinuousState(
+                context_a.get_continuous_state_vector().CopyToVector())
+    # The state is already the one to go on from: no initialization events.
+    target.Initialize(InitializeParams(suppress_initialization_events=True))
+    return target
