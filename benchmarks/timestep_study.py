@@ -118,6 +118,8 @@ def map_at_step(name, step_ms, out_dir: Path, workers: int,
     caught = np.zeros((10, 15), bool)
     for cell, cell_row in rows.items():
         caught[cell] = cell_row["outcome"] == "caught"
+    if throw_step_ms:
+        row = row | {"step_ms": step_ms, "throw_step_ms": throw_step_ms}
     return row | {"cells_caught": int(caught.sum()),
                   "caught": caught.astype(int).tolist(),
                   "table1": table1_throws(setup[1], setup[3], caught)}
