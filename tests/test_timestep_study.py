@@ -116,6 +116,14 @@ class BadInputTest(unittest.TestCase):
         self.assertEqual(code, 2)
         self.assertIn("'no-such-object'", err)
 
+    def test_bad_throw_step_refused_naming_the_flag(self):
+        code, err = self._run("--throw-step-ms", "0.3")
+        self.assertEqual(code, 2)
+        self.assertIn("--throw-step-ms 0.3", err)
+        code, err = self._run("--throw-step-ms", "1", "--flights-only")
+        self.assertEqual(code, 2)
+        self.assertIn("--throw-step-ms: a catch-only study needs maps", err)
+
 
 if __name__ == "__main__":
     unittest.main()
