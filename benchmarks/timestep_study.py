@@ -1,8 +1,8 @@
 """Do success maps converge as the plant's time step shrinks?
 
     .venv/bin/python benchmarks/timestep_study.py [--objects table1-row2 …]
-        [--steps-ms 2 1 0.5 0.25 0.125] [--flights-only] [--workers 2]
-        [--out benchmarks/timestep_study]
+        [--steps-ms 2 1 0.5 0.25 0.125] [--flights-only] [--throw-step-ms X]
+        [--scenario F] [--workers 2] [--out benchmarks/timestep_study]
 
 For each object and each time step (the shipped scenario with only
 `time_step_s` changed): the watching throw, the object's state when the throw
@@ -61,22 +61,25 @@ def release_state(scenario, obj, logs) -> dict:
             "w_O": [round(float(c), 4) for c in R_WO.T @ x[7:10]]}
 
 
-def _scenario(step_ms):
+def _scenario(step_ms, scenario_path=None):
     import dataclasses as dc
 
     from regrasp_drake.station.scenario import load_scenario, validate
-    return validate(dc.replace(load_scenario(), time_step_s=step_ms / 1e3))
+    return validate(dc.replace(load_scenario(scenario_path),
+                               time_step_s=step_ms / 1e3))
 
 
-def flight(name, step_ms):
-    """The watching throw at one step: the release state and the planned
-    catch (catch_point None when no moment is reachable); also returns the
-    plan, for the map."""
+def flight(name, step_ms, scenario_path=None):
+    """The watching throw at one step (of the scenario at `scenario_path`,
+    None: the shipped one): the release state and the planned catch
+    (catch_point None when no moment is reachable); also returns the plan,
+    for the map."""
     from regrasp_drake.errors import InputError
     from regrasp_drake.planning.ik import ArmIk
     from regrasp_drake.throw_catch import plan_catch, watch
     from regrasp_drake.world.objects import resolve_object
-    scenario, obj, ik = _scenario(step_ms), resolve_object(name=name), ArmIk()
+    scenario = _scenario(step_ms, scenario_path)
+    obj, ik = resolve_object(name=name), ArmIk()
     watched = watch(scenario, obj, ik)
     row = {"object": name, "step_ms": step_ms,
            "release": release_state(scenario, obj, watched.logs),
@@ -98,12 +101,12 @@ def _flight_row(task):
 
 
 def map_at_step(name, step_ms, out_dir: Path, workers: int,
-                throw_step_ms=None) -> dict:
+                throw_step_ms=None, scenario_path=None) -> dict:
     """The flight and the 150-cell success map of one object at one step.
     With `throw_step_ms`: the watch, the plan and every catching throw up to
     the throw's end at that step, the rest of each catch at `step_ms`."""
     from regrasp_drake.grid import run_map
-    row, setup = flight(name, throw_step_ms or step_ms)
+    row, setup = flight(name, throw_step_ms or step_ms, scenario_path)
     if setup is None:
         raise SystemExit(f"timestep_study: error: {name} at "
                          f"{throw_step_ms or step_ms:g} ms: no reachable catch "
@@ -113,7 +116,8 @@ def map_at_step(name, step_ms, out_dir: Path, workers: int,
     if throw_step_ms:
         path = out_dir / f"{name}_{step_ms:g}ms_throw{throw_step_ms:g}ms.jsonl"
         throw = setup[0].throw
-        handoff = (throw.settle_s + throw.knot_times_s[-1], _scenario(step_ms))
+        handoff = (throw.settle_s + throw.knot_times_s[-1],
+                   _scenario(step_ms, scenario_path))
     rows = run_map(*setup, path, workers=workers, handoff=handoff)
     caught = np.zeros((10, 15), bool)
     for cell, cell_row in rows.items():
@@ -196,18 +200,23 @@ def main(argv=None) -> int:
     parser.add_argument("--throw-step-ms", type=float,
                         help="simulate every throw to its end at this step, "
                              "only the catch at each of --steps-ms")
+    parser.add_argument("--scenario", type=Path,
+                        help="a scenario YAML file (default: the shipped "
+                             "scenario); only its time_step_s is varied")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path,
                         default=Path("benchmarks/timestep_study"))
     args = parser.parse_args(argv)
     from regrasp_drake.errors import InputError
+    from regrasp_drake.station.scenario import load_scenario
     from regrasp_drake.world.objects import resolve_object
     try:
+        load_scenario(args.scenario)
         for flag, steps in (("--steps-ms", args.steps_ms),
                             ("--throw-step-ms", [args.throw_step_ms or 1.0])):
             for step in steps:
                 try:
-                    _scenario(step)
+                    _scenario(step, args.scenario)
                 except InputError as e:
                     raise InputError(f"{flag} {step:g}: {e}") from None
         if args.throw_step_ms and args.flights_only:
@@ -229,7 +238,7 @@ def main(argv=None) -> int:
         lines = args.out / "flights.jsonl"
         key = lambda row: (row["object"], row["step_ms"])  # noqa: E731
         done = read_rows(lines, key=key)
-        tasks = [(name, step) for name in args.objects
+        tasks = [(name, step, args.scenario) for name in args.objects
                  for step in args.steps_ms if (name, step) not in done]
         append_rows(_flight_row, tasks, lines, done, key,
                     workers=args.workers, label="flights", unit="throws")
@@ -241,9 +250,11 @@ def main(argv=None) -> int:
             for step in args.steps_ms:
                 print(f"{name}, step {step:g} ms", file=sys.stderr)
                 results[name][step] = map_at_step(
-                    name, step, args.out, args.workers, args.throw_step_ms)
+                    name, step, args.out, args.workers, args.throw_step_ms,
+                    args.scenario)
     summary = summarize(results, args.steps_ms) | {
-        "throw_step_ms": args.throw_step_ms}
+        "throw_step_ms": args.throw_step_ms,
+        "scenario": str(args.scenario) if args.scenario else None}
     args.out.with_suffix(".json").write_text(json.dumps(summary) + "\n")
     _print(summary)
     (_plot_flights if args.flights_only else _plot_maps)(

@@ -124,6 +124,11 @@ class BadInputTest(unittest.TestCase):
         self.assertEqual(code, 2)
         self.assertIn("--throw-step-ms: a catch-only study needs maps", err)
 
+    def test_missing_scenario_file_refused_naming_it(self):
+        code, err = self._run("--scenario", "/no/such/scenario.yaml")
+        self.assertEqual(code, 2)
+        self.assertIn("--scenario: got '/no/such/scenario.yaml'", err)
+
 
 if __name__ == "__main__":
     unittest.main()
