@@ -327,7 +327,9 @@ def _plot_maps(summary, path):
     throw = summary.get("throw_step_ms")
     fig.suptitle("Success maps against the plant's time step (green: caught)"
                  + (f"; every throw at {throw:g} ms, only the catch at the "
-                    "step" if throw else ""), fontsize=9)
+                    "step" if throw else "")
+                 + (f"; scenario {summary['scenario']}"
+                    if summary.get("scenario") else ""), fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)

@@ -1,0 +1,77 @@
+"""benchmarks/map_sensitivity.py: cells changed against chance, bad input."""
+
+import contextlib
+import importlib.util
+import io
+import unittest
+from pathlib import Path
+
+import numpy as np
+
+_PATH = Path(__file__).parents[1] / "benchmarks" / "map_sensitivity.py"
+_spec = importlib.util.spec_from_file_location("map_sensitivity", _PATH)
+sensitivity = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(sensitivity)
+
+
+def _row(caught, w_O=(0.0, 0.0, 0.0)):
+    caught = np.asarray(caught, bool)
+    return {"caught": caught.astype(int).tolist(),
+            "cells_caught": int(caught.sum()), "release": {"w_O": list(w_O)}}
+
+
+class ChangedTest(unittest.TestCase):
+    def test_same_map_changes_nothing_and_complement_changes_all(self):
+        a = np.zeros((10, 15), bool)
+        a[:5] = True
+        self.assertEqual(sensitivity.changed(a, a),
+                         {"changed": 0, "chance": 75.0})
+        self.assertEqual(sensitivity.changed(a, ~a)["changed"], 150)
+
+    def test_summary_per_level_and_seed(self):
+        plain = np.zeros((10, 15), bool)
+        plain[:3] = True
+        one = plain.copy()
+        one[0, 0] = False
+        maps = {"obj": {(0.0, 0): _row(plain),
+                        (1e-3, 1): _row(one, (0.0, 0.3, 0.4)),
+                        (1e-3, 2): _row(plain),
+                        (1e-2, 1): _row(~plain)}}
+        s = sensitivity.summarize(maps, [1e-3, 1e-2])["obj"]
+        self.assertEqual(s["plain_cells_caught"], 45)
+        self.assertEqual([r["seed"] for r in s["by_std"]["0.001"]], [1, 2])
+        first = s["by_std"]["0.001"][0]
+        self.assertEqual(first["changed"], 1)
+        self.assertEqual(first["cells_caught"], 44)
+        self.assertAlmostEqual(first["w_O_shift_rad_per_s"], 0.5)
+        self.assertEqual(s["by_std"]["0.001"][1]["changed"], 0)
+        self.assertEqual(s["by_std"]["0.01"][0]["changed"], 150)
+
+
+class BadInputTest(unittest.TestCase):
+    def _run(self, *argv):
+        err = io.StringIO()
+        with contextlib.redirect_stderr(err):
+            code = sensitivity.main(list(argv))
+        return code, err.getvalue()
+
+    def test_non_positive_or_out_of_range_noise_refused_naming_it(self):
+        code, err = self._run("--stds", "0")
+        self.assertEqual(code, 2)
+        self.assertIn("--stds 0: expected > 0 rad/s", err)
+        code, err = self._run("--stds", "50")
+        self.assertEqual(code, 2)
+        self.assertIn("--stds 50", err)
+        self.assertIn("joint_velocity_std_rad_per_s", err)
+
+    def test_bad_seeds_and_unknown_object_refused(self):
+        code, err = self._run("--seeds", "0")
+        self.assertEqual(code, 2)
+        self.assertIn("--seeds 0: expected >= 1", err)
+        code, err = self._run("--objects", "no-such-object")
+        self.assertEqual(code, 2)
+        self.assertIn("'no-such-object'", err)
+
+
+if __name__ == "__main__":
+    unittest.main()
