@@ -104,11 +104,14 @@ def main(argv=None) -> int:
     from regrasp_drake.station.scenario import ThrowNoise, validate
     from regrasp_drake.world.objects import resolve_object
     try:
+        try:
+            base = study._scenario(args.step_ms)
+        except InputError as e:
+            raise InputError(f"--step-ms {args.step_ms:g}: {e}") from None
         for std in args.stds:
             if not std > 0:
                 raise InputError(f"--stds {std:g}: expected > 0 rad/s (the "
                                  "unperturbed map is always run)")
-            base = study._scenario(args.step_ms)
             try:
                 validate(dc.replace(base, throw=dc.replace(
                     base.throw, noise=ThrowNoise(

@@ -64,6 +64,11 @@ class BadInputTest(unittest.TestCase):
         self.assertIn("--stds 50", err)
         self.assertIn("joint_velocity_std_rad_per_s", err)
 
+    def test_bad_step_refused_naming_the_flag(self):
+        code, err = self._run("--step-ms", "7")
+        self.assertEqual(code, 2)
+        self.assertIn("--step-ms 7: time_step_s: got 0.007", err)
+
     def test_bad_seeds_and_unknown_object_refused(self):
         code, err = self._run("--seeds", "0")
         self.assertEqual(code, 2)
