@@ -48,7 +48,6 @@ def _level_dir(out: Path, std: float, seed: int) -> Path:
 def _write_scenario(directory: Path, std: float, seed: int) -> Path:
     """The shipped scenario with only the release's joint-velocity noise
     set; written beside the maps it made."""
-    directory.mkdir(parents=True, exist_ok=True)
     path = directory / "scenario.yaml"
     path.write_text("# benchmarks/map_sensitivity.py: the shipped scenario "
                     "with release noise.\nthrow:\n  noise:\n"
@@ -134,8 +133,8 @@ def main(argv=None) -> int:
     maps = {name: {} for name in args.objects}
     for std, seed in levels:
         directory = _level_dir(args.out, std, seed)
-        scenario = None if std == 0 else _write_scenario(directory, std, seed)
         directory.mkdir(parents=True, exist_ok=True)
+        scenario = None if std == 0 else _write_scenario(directory, std, seed)
         for name in args.objects:
             print(f"{name}, noise {std:g} rad/s, seed {seed}", file=sys.stderr)
             maps[name][(std, seed)] = study.map_at_step(

@@ -20,10 +20,12 @@ cell for that step's catch point, then the wavefront's or the map prior's
 cells up to the first that catches.
 
 Writes <out>/<object>_<step>ms.jsonl (one line per cell, as it finishes; a
-rerun resumes), <out>.json (the figures) and <out>.png (every map, and the
-agreements against chance). With --flights-only: the watching throws alone,
-`workers` at a time, into <out>/flights.jsonl (resumable), and a PNG of each
-object's spin and catch-point shift between the coarsest and finest steps.
+rerun resumes; <out>/scenario.json records the scenario, and an --out holding
+another scenario's results is refused), <out>.json (the figures) and
+<out>.png (every map, and the agreements against chance). With
+--flights-only: the watching throws alone, `workers` at a time, into
+<out>/flights.jsonl (resumable), and a PNG of each object's spin and
+catch-point shift between the coarsest and finest steps.
 """
 
 import argparse
@@ -67,6 +69,29 @@ def _scenario(step_ms, scenario_path=None):
     from regrasp_drake.station.scenario import load_scenario, validate
     return validate(dc.replace(load_scenario(scenario_path),
                                time_step_s=step_ms / 1e3))
+
+
+def claim_out_dir(out: Path, scenario_path=None) -> None:
+    """Records in <out>/scenario.json the scenario (all but time_step_s) the
+    maps and flights in `out` come from, or refuses, naming --out and
+    --scenario, a scenario other than the one recorded: the resumable files
+    there are keyed by object, step and cell only, and would mix runs."""
+    import dataclasses as dc
+
+    from regrasp_drake.errors import InputError
+    from regrasp_drake.station.scenario import load_scenario
+    fields = dc.asdict(load_scenario(scenario_path))
+    del fields["time_step_s"]
+    record = out / "scenario.json"
+    if record.is_file():
+        if json.loads(record.read_text()) != fields:
+            raise InputError(
+                f"--out {out}: holds results of another scenario than "
+                f"--scenario {scenario_path or '(the shipped one)'} (see "
+                f"{record}); expected a fresh --out")
+        return
+    out.mkdir(parents=True, exist_ok=True)
+    record.write_text(json.dumps(fields, indent=1) + "\n")
 
 
 def flight(name, step_ms, scenario_path=None):
@@ -226,6 +251,7 @@ def main(argv=None) -> int:
             resolve_object(name=name)
         if args.workers < 1:
             raise InputError(f"--workers {args.workers}: expected >= 1")
+        claim_out_dir(args.out, args.scenario)
     except InputError as e:
         print(f"timestep_study: error: {e}", file=sys.stderr)
         return 2

@@ -130,5 +130,25 @@ class BadInputTest(unittest.TestCase):
         self.assertIn("--scenario: got '/no/such/scenario.yaml'", err)
 
 
+class OutDirTest(unittest.TestCase):
+    def test_out_dir_refuses_another_scenario(self):
+        import tempfile
+
+        from regrasp_drake.errors import InputError
+        with tempfile.TemporaryDirectory() as tmp:
+            out = Path(tmp) / "study"
+            study.claim_out_dir(out)
+            study.claim_out_dir(out)  # The same scenario again: resumes.
+            other = Path(tmp) / "sap.yaml"
+            other.write_text("contact:\n  discrete_contact_approximation: sap\n")
+            with self.assertRaisesRegex(InputError, r"--out .*study: holds "
+                                        r"results of another scenario"):
+                study.claim_out_dir(out, other)
+            # Only the time step may differ: it is what the study varies.
+            step = Path(tmp) / "step.yaml"
+            step.write_text("time_step_s: 0.0005\n")
+            study.claim_out_dir(out, step)
+
+
 if __name__ == "__main__":
     unittest.main()
