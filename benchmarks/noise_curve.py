@@ -116,7 +116,13 @@ def main() -> int:
     libraries = {"watch": args.library, "first-throw": args.first_throw_library,
                  "at-release": args.at_release_library}
     learned = {}
-    for mode, path in libraries.items():
+    for (mode, path), flag in zip(libraries.items(), (
+            "--library", "--first-throw-library", "--at-release-library")):
+        if not path.is_file():  # a typo would silently drop the mode
+            print(f"noise_curve: error: {flag}: got {path}, expected an "
+                  "existing regrasp library file (`regrasp-drake table1 "
+                  "--library F` writes one)", file=sys.stderr)
+            return 2
         learned[mode] = set(load_library(path))
         missing = [n for n in args.objects if n not in learned[mode]]
         if missing:

@@ -6,6 +6,14 @@ success maps only (no simulation).
 A search's cost on a success map is the number of cells it tries up to and
 including the first that catches (`search.attempts_to_catch`); in the
 learning phase that is the catching throws, the watching throw not counted.
+Three searches: the paper's wavefront, the map prior as the learning phase
+runs it (its maps weighted by the feature kernel, search.FEATURE_SIGMA), and
+the map prior with every map weighing alike ("map-prior-uniform").
+
+0. The feature kernel's width: the leave-one-object-out search of section 1
+   from the cell (7, 2), for each width of search.py's FEATURE_SIGMA comment;
+   the width it picks by that comment's rule, and whether that is the
+   shipped FEATURE_SIGMA.
 
 1. Leave-one-object-out on the training maps (models/dataset/maps.npz): each
    entry whose map catches somewhere is held out with every entry of its
@@ -22,7 +30,8 @@ learning phase that is the catching throws, the watching throw not counted.
 2. The Table 1 objects' maps (models/results/maps/table1-row*.jsonl, one
    line per cell with "cell" [i_catch, i_down] and "outcome"), searched from
    each row's start cell in models/results/table1.json (the network's cell
-   at the watched plan), with the whole training prior. The predicted throws
+   at the watched plan), with the whole training prior (weighted by the
+   row's features in table1.json). The predicted throws
    of `regrasp-drake table1 --search …` are these cells + 1 (the watch),
    and the cells tried are listed. If models/results/table1_prior.json
    (`regrasp-drake table1 --search map-prior`) exists, its throws and cells
@@ -40,8 +49,9 @@ import numpy as np
 
 from regrasp_drake.learning.dataset import label_cell, object_of
 from regrasp_drake.learning.search import (
-    SEARCHES,
+    FEATURE_SIGMA,
     attempts_to_catch,
+    feature_weights,
     load_prior_maps,
     map_prior_order,
     wavefront_order,
@@ -52,11 +62,20 @@ RESULTS_DIR = MODELS_DIR / "results"
 FIXED_START = (7, 2)  # the network's cell for table1 rows 1-3 (table1.json)
 
 
-def search_order(search: str, start, prior):
-    """The cells of `search` from start, with prior maps for the map prior."""
+SEARCHES = ("wavefront", "map-prior", "map-prior-uniform")
+SIGMAS = (None, 4.0, 3.0, 2.0, 1.5, 1.0, 0.75, 0.5)  # FEATURE_SIGMA's choices
+
+
+def search_order(search: str, start, prior, prior_features=None,
+                 features=None, sigma=FEATURE_SIGMA):
+    """The cells of `search` from start, with prior maps (and, for the
+    weighted map prior, their entries' features and the object's)."""
     if search == "wavefront":
         return wavefront_order(start)
-    return map_prior_order(start, prior)
+    weights = None
+    if search == "map-prior":
+        weights = feature_weights(features, prior_features, sigma)
+    return map_prior_order(start, prior, weights=weights)
 
 
 def statistics(counts: dict) -> dict:
@@ -71,7 +90,26 @@ def statistics(counts: dict) -> dict:
             "max_cells": int(n.max()), "worst_entry": worst}
 
 
-def leave_one_object_out(names, maps) -> dict:
+def feature_sigma(names, maps, features) -> dict:
+    """Section 0 of the module's docstring."""
+    rows = []
+    for sigma in SIGMAS:
+        counts = {}
+        for k, (name, caught) in enumerate(zip(names, maps)):
+            if not caught.any():
+                continue
+            keep = [object_of(n) != object_of(name) for n in names]
+            counts[name] = attempts_to_catch(search_order(
+                "map-prior", FIXED_START, maps[keep], features[keep],
+                features[k], sigma), caught)
+        rows.append({"sigma": sigma} | statistics(counts))
+    best = max(rows, key=lambda r: (r["within_2"], r["within_3"]))
+    return {"start_cell": list(FIXED_START), "widths": rows,
+            "chosen": best["sigma"], "shipped": FEATURE_SIGMA,
+            "agrees": best["sigma"] == FEATURE_SIGMA}
+
+
+def leave_one_object_out(names, maps, features) -> dict:
     """Section 1 of the module's docstring."""
     by_name = dict(zip(names, maps))
     starts = {"fixed_cell_7_2": lambda name: FIXED_START,
@@ -82,14 +120,15 @@ def leave_one_object_out(names, maps) -> dict:
                                         if not m.any()]}
     for label, start_for in starts.items():
         counts = {s: {} for s in SEARCHES}
-        for name, caught in zip(names, maps):
+        for k, (name, caught) in enumerate(zip(names, maps)):
             start = start_for(name) if caught.any() else None
             if start is None:
                 continue
-            prior = maps[[object_of(n) != object_of(name) for n in names]]
+            keep = [object_of(n) != object_of(name) for n in names]
             for s in SEARCHES:
-                counts[s][name] = attempts_to_catch(
-                    search_order(s, start, prior), caught)
+                counts[s][name] = attempts_to_catch(search_order(
+                    s, start, maps[keep], features[keep], features[k]),
+                    caught)
         out[label] = {s: statistics(c) for s, c in counts.items()}
     return out
 
@@ -118,10 +157,11 @@ def table1_maps() -> dict:
     return out
 
 
-def table1(maps) -> list[dict]:
+def table1(maps, prior_features) -> list[dict]:
     """Section 2 of the module's docstring."""
-    start_cells = {r["object"]: tuple(r["start_cell"]) for r in json.loads(
-        (RESULTS_DIR / "table1.json").read_text())}
+    rows = json.loads((RESULTS_DIR / "table1.json").read_text())
+    start_cells = {r["object"]: tuple(r["start_cell"]) for r in rows}
+    features = {r["object"]: r["features"] for r in rows}
     simulated = RESULTS_DIR / "table1_prior.json"
     simulated = ({r["object"]: r for r in json.loads(simulated.read_text())}
                  if simulated.exists() else {})
@@ -131,8 +171,9 @@ def table1(maps) -> list[dict]:
         row = {"object": name, "start_cell": list(start),
                "cells_caught": int(caught.sum())}
         for s in SEARCHES:
-            n = attempts_to_catch(search_order(s, start, maps), caught)
-            tried = list(search_order(s, start, maps))[:n or 150]
+            args = (s, start, maps, prior_features, features[name])
+            n = attempts_to_catch(search_order(*args), caught)
+            tried = list(search_order(*args))[:n or 150]
             row[s] = {"cells": n, "predicted_throws": None if n is None
                       else n + 1, "cells_tried": [list(c) for c in tried]}
         if name in simulated:
@@ -153,11 +194,24 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path,
                         default=Path(__file__).with_name("search_prior.json"))
     args = parser.parse_args(argv)
-    names, maps = load_prior_maps()
+    names, maps, features = load_prior_maps(with_features=True)
+    if features is None:
+        sys.exit("models/dataset/maps.npz: no 'features' (written before the "
+                 "feature kernel): run `regrasp-drake dataset` to rewrite it")
     result = {"prior": {"file": "models/dataset/maps.npz",
                         "entries": len(names)},
-              "leave_one_object_out": leave_one_object_out(names, maps),
-              "table1": table1(maps)}
+              "feature_sigma": feature_sigma(names, maps, features),
+              "leave_one_object_out": leave_one_object_out(names, maps,
+                                                           features),
+              "table1": table1(maps, features)}
+    fs = result["feature_sigma"]
+    print(f"feature kernel width, leave-one-object-out from {FIXED_START}:")
+    for r in fs["widths"]:
+        print(f"  sigma {str(r['sigma']):<5} mean {r['mean_cells']:5.2f} "
+              f"cells, within 1/2/3: {r['within_1']:.3f} {r['within_2']:.3f}"
+              f" {r['within_3']:.3f}, worst {r['max_cells']}")
+    print(f"  chosen {fs['chosen']}, shipped {fs['shipped']} "
+          f"(agrees: {fs['agrees']})")
     loo = result["leave_one_object_out"]
     print(f"leave-one-object-out, {len(names)} training maps "
           f"({len(loo['skipped_no_catching_cell'])} with no catching cell "
@@ -165,7 +219,7 @@ def main(argv=None) -> int:
     for label in ("fixed_cell_7_2", "own_label", "other_catch_point_label"):
         for s in SEARCHES:
             st = loo[label][s]
-            print(f"  start {label:<24} {s:<10} {st['entries']:>3} entries: "
+            print(f"  start {label:<24} {s:<17} {st['entries']:>3} entries: "
                   f"mean {st['mean_cells']:5.2f} (median "
                   f"{st['median_cells']:g}) cells, within 1/2/3: "
                   f"{st['within_1']:.3f} {st['within_2']:.3f} "

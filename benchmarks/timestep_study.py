@@ -163,6 +163,7 @@ def table1_throws(obj, plan, caught) -> dict:
     from regrasp_drake.learning.learning_phase import network_features, predict
     from regrasp_drake.learning.search import (
         attempts_to_catch,
+        feature_weights,
         load_prior_maps,
         map_prior_order,
         wavefront_order,
@@ -170,12 +171,15 @@ def table1_throws(obj, plan, caught) -> dict:
     from regrasp_drake.paths import MODELS_DIR
     from regrasp_drake.station.mlp_system import load_weights
     model, _ = load_weights(MODELS_DIR / "catch_mlp.pt")
-    start = nearest_cell(*predict(model, network_features(
-        obj, plan.catch_point))[1])
+    features = network_features(obj, plan.catch_point)
+    start = nearest_cell(*predict(model, features)[1])
+    _, prior, prior_features = load_prior_maps(with_features=True)
+    weights = (None if prior_features is None
+               else feature_weights(features, prior_features))
     out = {"network_cell": list(start)}
     for search, order in (
             ("wavefront", wavefront_order(start)),
-            ("map_prior", map_prior_order(start, load_prior_maps()[1]))):
+            ("map_prior", map_prior_order(start, prior, weights=weights))):
         n = attempts_to_catch(order, caught)
         out[f"throws_{search}"] = None if n is None else n + 1
     return out

@@ -2,6 +2,7 @@
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -14,6 +15,7 @@ import numpy as np
 
 from regrasp_drake.errors import InputError
 from regrasp_drake.learning.dataset import (
+    FEATURE_NAMES,
     SHAPE,
     generate,
     label_cell,
@@ -118,9 +120,27 @@ class GenerateTest(unittest.TestCase):
         self.assertGreaterEqual(self.serial["samples"], 1)
         with np.load(out / "maps.npz") as maps:
             self.assertEqual(maps["caught"].shape, (2, *SHAPE))
+            # Each map's features (the map prior's kernel) are its plan's.
+            self.assertEqual(list(maps["feature_names"]), list(FEATURE_NAMES))
+            for name, features in zip(maps["objects"], maps["features"]):
+                plan = json.loads((out / "plans" / f"{name}.json").read_text())
+                self.assertEqual(features.tolist(), [
+                    plan["features"][k] for k in FEATURE_NAMES])
         provenance = json.loads((out / "provenance.json").read_text())
         self.assertIn("time_step_s", provenance["scenario"])
         self.assertEqual(len(provenance["catalogue_sha256"]), 64)
+        # One run computed both entries; its record is kept.
+        self.assertEqual(provenance["entries_computed"], 2)
+        self.assertEqual([r["entries_computed"] for r in provenance["runs"]],
+                         [2])
+
+    def test_a_run_with_nothing_to_do_keeps_the_runs_record(self):
+        out = self.root / "rerun"
+        shutil.copytree(self.root / "serial", out)
+        again = generate(OBJECTS, out, workers=1, only=COARSE,
+                         progress=False)
+        self.assertEqual(again["entries_computed"], 0)
+        self.assertEqual(again["runs"], self.serial["runs"])
 
     def test_two_catch_points_per_object(self):
         """--catch-points 2: a second entry per object, planned at another

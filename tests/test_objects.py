@@ -128,11 +128,11 @@ class TestCatalogue(unittest.TestCase):
 
     def test_sets_and_table1(self):
         sets = [spec.set for spec in self.catalogue.values()]
-        self.assertEqual(sets, ["train"] * 48 + ["test"] * 5 + ["holdout"] * 6)
+        self.assertEqual(sets, ["train"] * 56 + ["test"] * 5 + ["holdout"] * 6)
         train_geometries = {
             s.geometry for s in self.catalogue.values() if s.set == "train"
         }
-        self.assertEqual(len(train_geometries), 9)
+        self.assertEqual(len(train_geometries), 11)
         for name, (geometry, density, h_cm, r_cm) in TABLE1.items():
             spec = self.catalogue[name]
             self.assertEqual(

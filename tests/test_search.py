@@ -17,7 +17,9 @@ from regrasp_drake.errors import InputError
 from regrasp_drake.grid import H_CATCH_VALUES, H_DOWN_VALUES, cells
 from regrasp_drake.learning.dataset import object_of
 from regrasp_drake.learning.search import (
+    FEATURE_SIGMA,
     attempts_to_catch,
+    feature_weights,
     load_prior_maps,
     map_prior_order,
     ring,
@@ -198,6 +200,63 @@ class TestMapPriorOrder(unittest.TestCase):
                 map_prior_order(**kwargs)  # no next(): refused at once
             self.assertIn(field, str(e.exception))
 
+    def test_feature_weights_favour_the_maps_of_like_objects(self):
+        """Two kinds of object that differ in r_cm only: maps of an object
+        with the other kind's features weigh e^-2 or less (2 standard
+        deviations apart at sigma 1), the nearest entry weighs 1, and no
+        sigma is uniform."""
+        prior = np.array([[-3.7, 0.0, 0.0, 200.0, 8.0]] * 3
+                         + [[-3.7, 0.0, 0.04, 200.0, 8.0]] * 3)
+        near = feature_weights(prior[4], prior, sigma=1.0)
+        np.testing.assert_allclose(near[3:], 1.0)
+        np.testing.assert_allclose(near[:3], np.exp(-2.0))
+        # Far beyond every entry: the nearest still weighs 1 (no underflow).
+        far = feature_weights([-3.7, 0.0, 5.0, 200.0, 8.0], prior, sigma=0.1)
+        np.testing.assert_allclose(far[3:], 1.0)
+        self.assertTrue(np.all(far[:3] < 1e-12))
+        np.testing.assert_array_equal(feature_weights(prior[0], prior, None),
+                                      np.ones(6))
+        for args, field in (((prior[0], prior[:, :4]), "prior_features"),
+                            (([1.0, 2.0], prior), "features"),
+                            (([np.nan] * 5, prior), "features"),
+                            ((prior[0], prior, 0.0), "sigma")):
+            with self.subTest(field=field), \
+                    self.assertRaises(InputError) as e:
+                feature_weights(*args)
+            self.assertIn(field, str(e.exception))
+
+    def test_weights_pick_the_like_objects_maps(self):
+        """Two kinds of map, both failing at the start cell: weighted toward
+        one kind, the search's second cell is that kind's catching cell;
+        toward the other, the other's."""
+        kind_a, kind_b = block((0, 0), (0, 0)), block((9, 9), (14, 14))
+        maps = np.array([kind_a, kind_a, kind_b, kind_b])
+        start = (5, 7)
+        for weights, second in (([1, 1, 1e-3, 1e-3], (0, 0)),
+                                ([1e-3, 1e-3, 1, 1], (9, 14))):
+            order = map_prior_order(start, maps, sigma_cells=0,
+                                    weights=weights)
+            with self.subTest(weights=weights):
+                self.assertEqual(list(itertools.islice(order, 2)),
+                                 [start, second])
+        for weights in ([1, 1, 1], [0, 0, 0, 0], [1, -1, 1, 1],
+                        [1, np.inf, 1, 1]):
+            with self.subTest(weights=weights), \
+                    self.assertRaises(InputError) as e:
+                map_prior_order(start, maps, weights=weights)
+            self.assertIn("weights", str(e.exception))
+
+    def test_shipped_prior_has_features_and_the_kernel_width_is_positive(self):
+        names, caught, features = load_prior_maps(with_features=True)
+        self.assertEqual(features.shape, (len(names), 5))
+        self.assertGreater(FEATURE_SIGMA, 0)
+        # The entries' features are those of their plans in the data set.
+        plan = json.loads((MODELS_DIR / "dataset" / "plans"
+                           / f"{names[0]}.json").read_text())
+        np.testing.assert_array_equal(
+            features[0], [plan["features"][k] for k in (
+                "v_catch", "h_cm", "r_cm", "d_obj", "v_conv")])
+
     def test_smoothing_keeps_probabilities_and_spreads_a_catch(self):
         caught = block((4, 4), (7, 7))
         p = smooth(caught)
@@ -257,8 +316,14 @@ class TestSearchOption(unittest.TestCase):
                  "'map-prior'"),
                 (dict(search="wavefront", prior_maps=np.zeros((1, 10, 15))),
                  "prior_maps: got 'given', expected none unless search is "
-                 "'map-prior'")):
-            with self.subTest(search=kwargs["search"]), \
+                 "'map-prior'"),
+                (dict(search="wavefront", prior_features=np.zeros((1, 5))),
+                 "prior_features: got 'given', expected none unless search "
+                 "is 'map-prior'"),
+                (dict(search="map-prior", prior_features=np.zeros((1, 5))),
+                 "prior_features: got 'given without prior_maps', expected "
+                 "the features of the prior_maps' entries")):
+            with self.subTest(kwargs=list(kwargs)), \
                     self.assertRaises(InputError) as e:
                 learn(load_scenario(), load_catalogue()["table1-row2"],
                       CatchMlp(), on_episode=episodes.append,
@@ -289,8 +354,9 @@ class TestSearchOption(unittest.TestCase):
 class TestMapPriorLearningRun(unittest.TestCase):
     """table1-row2 from the cell (0.04, 0.00) m, which drops it: the
     wavefront's next cells drop it too (test_learning's capped search; its
-    stored map: the wavefront's first catch is its 14th cell); the map prior
-    goes to (0.40, -0.10) m, which catches. Three throws."""
+    stored map: the wavefront's first catch is its 14th cell); the map prior,
+    its maps weighted by the object's features, goes to (0.40, -0.11) m,
+    which catches. Three throws."""
 
     def test_catches_on_the_map_priors_second_cell(self):
         import torch
@@ -305,11 +371,16 @@ class TestMapPriorLearningRun(unittest.TestCase):
         with tempfile.TemporaryDirectory() as d:
             model, _ = load_weights(constant_weights(Path(d) / "w.pt",
                                                      0.04, 0.0))
-        _, prior = load_prior_maps()
+        _, prior, prior_features = load_prior_maps(with_features=True)
         r = learn(load_scenario(), load_catalogue()["table1-row2"], model,
                   ik=ArmIk(), max_throws=3, progress=None, search="map-prior")
-        expected = list(itertools.islice(map_prior_order((0, 14), prior), 2))
-        self.assertEqual(expected, [(0, 14), (9, 4)])
+        weights = feature_weights(r.features, prior_features)
+        expected = list(itertools.islice(
+            map_prior_order((0, 14), prior, weights=weights), 2))
+        self.assertEqual(expected, [(0, 14), (9, 3)])
+        # Every map alike, the second cell would be another.
+        self.assertEqual(list(itertools.islice(
+            map_prior_order((0, 14), prior), 2))[1], (9, 4))
         self.assertEqual(r.start_cell, (0, 14))
         self.assertEqual([a.cell for a in r.attempts], expected)
         self.assertEqual([a.outcome == "caught" for a in r.attempts],
@@ -317,7 +388,7 @@ class TestMapPriorLearningRun(unittest.TestCase):
         self.assertTrue(r.caught)
         self.assertEqual(r.throws, 3)
         self.assertEqual(r.as_dict()["search"], "map-prior")
-        self.assertEqual((r.learned.h_catch, r.learned.h_down), (0.40, -0.10))
+        self.assertEqual((r.learned.h_catch, r.learned.h_down), (0.40, -0.11))
         self.assertEqual((r.learned.mode, r.learned.search),
                          ("watch", "map-prior"))
         # The stored success map of table1-row2 (models/results/maps, from

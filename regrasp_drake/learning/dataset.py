@@ -25,7 +25,10 @@ Files, under the output directory:
                            as it finishes (a killed run resumes from these);
     plans/<entry>.json     the features, catch point and v_catch;
     samples.csv            one row per labelled entry: features and label;
-    maps.npz               entries × 10 × 15 outcomes (1 caught, 0 not);
+    maps.npz               entries × 10 × 15 outcomes (1 caught, 0 not),
+                           and each entry's features (entries × 5, in
+                           FEATURE_NAMES order; the map-prior search's
+                           feature kernel, learning/search.py);
     provenance.json        scenario, catalogue hash, code version, timing.
 """
 
@@ -187,7 +190,7 @@ def generate(names: list[str], out_dir: Path, *, workers: int = 1,
     wall_s = time.perf_counter() - start
     return assemble(names, out_dir, scenario_path=scenario_path,
                     wall_s=wall_s, workers=workers, backend=backend,
-                    catch_points=catch_points)
+                    catch_points=catch_points, computed=len(tasks))
 
 
 def _run_processes(tasks, workers):
@@ -228,15 +231,18 @@ def load_map(out_dir: Path, name: str) -> np.ndarray:
 
 
 def assemble(names, out_dir: Path, *, scenario_path=None, wall_s=None,
-             workers=None, backend=None, catch_points=1) -> dict:
+             workers=None, backend=None, catch_points=1,
+             computed=None) -> dict:
     """Writes samples.csv, maps.npz and provenance.json from the per-entry
-    files (entries in `names` order)."""
+    files (entries in `names` order). wall_s, workers, backend and computed
+    describe the run that called it: its wall time, and how many entries it
+    computed (the others were already in out_dir)."""
     from pydrake.common.yaml import yaml_dump_typed
 
     from regrasp_drake.station.scenario import Scenario, load_scenario
     from regrasp_drake.world.objects import CATALOGUE_PATH
     out_dir = Path(out_dir)
-    maps, samples, unusable, unlabelled = [], [], [], []
+    maps, features, samples, unusable, unlabelled = [], [], [], [], []
     for name in names:
         plan = json.loads((out_dir / "plans" / f"{name}.json").read_text())
         if not plan["usable"]:
@@ -244,6 +250,7 @@ def assemble(names, out_dir: Path, *, scenario_path=None, wall_s=None,
             continue
         caught = load_map(out_dir, name)
         maps.append(caught)
+        features.append([plan["features"][k] for k in FEATURE_NAMES])
         cell = label_cell(caught)
         if cell is None:
             unlabelled.append(name)
@@ -257,6 +264,9 @@ def assemble(names, out_dir: Path, *, scenario_path=None, wall_s=None,
     usable = [n for n in names if n not in {u["object"] for u in unusable}]
     np.savez_compressed(out_dir / "maps.npz", objects=np.array(usable),
                         caught=np.array(maps, bool).reshape(-1, *SHAPE),
+                        features=np.array(features, float).reshape(
+                            -1, len(FEATURE_NAMES)),
+                        feature_names=np.array(FEATURE_NAMES),
                         h_catch=grid.H_CATCH_VALUES, h_down=grid.H_DOWN_VALUES)
     with (out_dir / "samples.csv").open("w", newline="") as f:
         fields = (["object", *FEATURE_NAMES, "h_catch", "h_down",
@@ -279,10 +289,36 @@ def assemble(names, out_dir: Path, *, scenario_path=None, wall_s=None,
             Path(CATALOGUE_PATH).read_bytes()).hexdigest(),
         "code_version": _code_version(),
         "generation_wall_s": None if wall_s is None else round(wall_s, 1),
+        "entries_computed": computed,
         "workers": workers, "backend": backend,
     }
+    provenance["runs"] = _runs(out_dir, provenance)
     _write_json(out_dir / "provenance.json", provenance)
     return provenance
+
+
+def _runs(out_dir: Path, provenance: dict) -> list[dict]:
+    """The generation runs that computed the entries of out_dir, oldest
+    first: those of the provenance.json already there (a file written
+    before runs were kept counts as one run of all its entries), and this
+    run, when it computed an entry."""
+    runs = []
+    path = out_dir / "provenance.json"
+    if path.exists():
+        old = json.loads(path.read_text())
+        runs = old.get("runs")
+        if runs is None:
+            runs = [] if old.get("generation_wall_s") is None else [{
+                "wall_s": old["generation_wall_s"],
+                "entries_computed": old.get("entries"),
+                "workers": old.get("workers"), "backend": old.get("backend"),
+                "code_version": old.get("code_version")}]
+    if provenance["entries_computed"]:
+        runs = runs + [{k: provenance[k] for k in (
+            "code_version", "workers", "backend")} | {
+            "wall_s": provenance["generation_wall_s"],
+            "entries_computed": provenance["entries_computed"]}]
+    return runs
 
 
 def load_samples(data_dir: Path) -> list[dict]:

@@ -56,6 +56,7 @@ from regrasp_drake.learning import library as lib
 from regrasp_drake.learning.flight_predictor import flight_from_release
 from regrasp_drake.learning.search import (
     SEARCHES,
+    feature_weights,
     load_prior_maps,
     map_prior_order,
     wavefront_order,
@@ -248,13 +249,16 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
           object_source: str = "catalogue", max_throws: int | None = None,
           meshcat=None, on_episode=None, progress=sys.stderr,
           flight_predictor=None, at_release: bool = False,
-          search: str = "wavefront", prior_maps=None) -> LearningResult:
+          search: str = "wavefront", prior_maps=None,
+          prior_features=None) -> LearningResult:
     """The learning phase on one object (see the module's docstring).
 
     search: the order of the cells after the network's, "wavefront" (the
     paper's) or "map-prior" (see learning/search.py). prior_maps: the map
-    prior's success maps, (entries, 10, 15) (None: the shipped training maps,
-    `search.load_prior_maps`); only with "map-prior".
+    prior's success maps, (entries, 10, 15), and prior_features, their
+    entries' network features (entries, 5) for the prior's feature kernel
+    (None: all maps weigh alike); both None: the shipped training maps and
+    features, `search.load_prior_maps`. Only with "map-prior".
 
     flight_predictor: a learning.flight_predictor.FlightPredictor for the
     first-throw mode (no watching throw), or None. at_release: the
@@ -273,11 +277,17 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
     if search not in SEARCHES:
         raise field_error("search", search,
                           f"one of {', '.join(map(repr, SEARCHES))}")
-    if prior_maps is not None and search != "map-prior":
-        raise field_error("prior_maps", "given",
-                          "none unless search is 'map-prior'")
+    for name, value in (("prior_maps", prior_maps),
+                        ("prior_features", prior_features)):
+        if value is not None and search != "map-prior":
+            raise field_error(name, "given", "none unless search is "
+                                             "'map-prior'")
+    if prior_features is not None and prior_maps is None:
+        raise field_error("prior_features", "given without prior_maps",
+                          "the features of the prior_maps' entries")
     if search == "map-prior" and prior_maps is None:
-        _, prior_maps = load_prior_maps()  # a bad file: refused before a throw
+        # A bad file: refused before a throw.
+        _, prior_maps, prior_features = load_prior_maps(with_features=True)
     first_throw = flight_predictor is not None or at_release
     if max_throws is not None and not (
             isinstance(max_throws, int) and max_throws >= 2 - first_throw):
@@ -330,8 +340,12 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
         report(f"catch point at t = {plan.catch_point.t_s:.3f} s, v_catch "
                f"{plan.catch_point.v_catch:.3f} m/s; network: h_catch "
                f"{raw[0]:.3f} m, h_down {raw[1]:.3f} m -> start cell {start}")
-        order = (map_prior_order(start, prior_maps) if search == "map-prior"
-                 else iter(wavefront_order(start)))
+        if search == "map-prior":
+            weights = (None if prior_features is None
+                       else feature_weights(features, prior_features))
+            order = map_prior_order(start, prior_maps, weights=weights)
+        else:
+            order = iter(wavefront_order(start))
         return features, raw, prediction, start, order
 
     features = raw = prediction = start = order = None
