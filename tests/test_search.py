@@ -291,8 +291,15 @@ class TestPriorMapsFile(unittest.TestCase):
                      caught=np.zeros((1, N_CATCH, N_DOWN - 1), bool))
             np.savez(d / "counts.npz", objects=np.array(["a"]),
                      caught=np.zeros((1, N_CATCH, N_DOWN), int))
+            np.savez(d / "four_features.npz", objects=np.array(["a"]),
+                     caught=np.zeros((1, N_CATCH, N_DOWN), bool),
+                     features=np.zeros((1, 4)))
+            np.savez(d / "nan_feature.npz", objects=np.array(["a"]),
+                     caught=np.zeros((1, N_CATCH, N_DOWN), bool),
+                     features=np.full((1, 5), np.nan))
             for name in ("missing.npz", "text.npz", "no_caught.npz",
-                         "wrong_shape.npz", "counts.npz"):
+                         "wrong_shape.npz", "counts.npz", "four_features.npz",
+                         "nan_feature.npz"):
                 with self.subTest(file=name), \
                         self.assertRaises(InputError) as e:
                     load_prior_maps(d / name)

@@ -29,7 +29,8 @@ Files, under the output directory:
                            and each entry's features (entries × 5, in
                            FEATURE_NAMES order; the map-prior search's
                            feature kernel, learning/search.py);
-    provenance.json        scenario, catalogue hash, code version, timing.
+    provenance.json        scenario, catalogue hash, code version, timing,
+                           and every run that computed entries here.
 """
 
 import csv
