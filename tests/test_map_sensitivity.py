@@ -1,12 +1,12 @@
 """benchmarks/map_sensitivity.py: cells changed against chance, bad input."""
 
-import contextlib
 import importlib.util
-import io
 import unittest
 from pathlib import Path
 
 import numpy as np
+
+from tests.refusals import RefusalAssertions
 
 _PATH = Path(__file__).parents[1] / "benchmarks" / "map_sensitivity.py"
 _spec = importlib.util.spec_from_file_location("map_sensitivity", _PATH)
@@ -48,34 +48,21 @@ class ChangedTest(unittest.TestCase):
         self.assertEqual(s["by_std"]["0.01"][0]["changed"], 150)
 
 
-class BadInputTest(unittest.TestCase):
-    def _run(self, *argv):
-        err = io.StringIO()
-        with contextlib.redirect_stderr(err):
-            code = sensitivity.main(list(argv))
-        return code, err.getvalue()
+class BadInputTest(RefusalAssertions, unittest.TestCase):
+    main = staticmethod(sensitivity.main)
 
     def test_non_positive_or_out_of_range_noise_refused_naming_it(self):
-        code, err = self._run("--stds", "0")
-        self.assertEqual(code, 2)
-        self.assertIn("--stds 0: expected > 0 rad/s", err)
-        code, err = self._run("--stds", "50")
-        self.assertEqual(code, 2)
-        self.assertIn("--stds 50", err)
-        self.assertIn("joint_velocity_std_rad_per_s", err)
+        self.assertRefused(["--stds", "0"], "--stds 0: expected > 0 rad/s")
+        self.assertRefused(["--stds", "50"], "--stds 50",
+                           "joint_velocity_std_rad_per_s")
 
     def test_bad_step_refused_naming_the_flag(self):
-        code, err = self._run("--step-ms", "7")
-        self.assertEqual(code, 2)
-        self.assertIn("--step-ms 7: time_step_s: got 0.007", err)
+        self.assertRefused(["--step-ms", "7"],
+                           "--step-ms 7: time_step_s: got 0.007")
 
     def test_bad_seeds_and_unknown_object_refused(self):
-        code, err = self._run("--seeds", "0")
-        self.assertEqual(code, 2)
-        self.assertIn("--seeds 0: expected >= 1", err)
-        code, err = self._run("--objects", "no-such-object")
-        self.assertEqual(code, 2)
-        self.assertIn("'no-such-object'", err)
+        self.assertRefused(["--seeds", "0"], "--seeds 0: expected >= 1")
+        self.assertRefused(["--objects", "no-such-object"], "'no-such-object'")
 
 
 if __name__ == "__main__":

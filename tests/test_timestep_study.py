@@ -1,13 +1,13 @@
 """benchmarks/timestep_study.py: map agreement against chance, bad input."""
 
-import contextlib
 import importlib.util
-import io
 import unittest
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
+
+from tests.refusals import RefusalAssertions
 
 _PATH = Path(__file__).parents[1] / "benchmarks" / "timestep_study.py"
 _spec = importlib.util.spec_from_file_location("timestep_study", _PATH)
@@ -96,39 +96,25 @@ class Table1ThrowsTest(unittest.TestCase):
         self.assertIsNone(t["throws_map_prior"])
 
 
-class BadInputTest(unittest.TestCase):
-    def _run(self, *argv):
-        err = io.StringIO()
-        with contextlib.redirect_stderr(err):
-            code = study.main(list(argv))
-        return code, err.getvalue()
+class BadInputTest(RefusalAssertions, unittest.TestCase):
+    main = staticmethod(study.main)
 
     def test_step_off_the_sensor_period_refused_naming_it(self):
-        code, err = self._run("--steps-ms", "0.3")
-        self.assertEqual(code, 2)
-        self.assertIn("--steps-ms 0.3", err)
-        self.assertIn("sensors.period_s", err)
+        self.assertRefused(["--steps-ms", "0.3"], "--steps-ms 0.3",
+                           "sensors.period_s")
 
     def test_step_out_of_range_and_unknown_object_refused(self):
-        code, err = self._run("--steps-ms", "7")
-        self.assertEqual(code, 2)
-        self.assertIn("time_step_s: got 0.007", err)
-        code, err = self._run("--objects", "no-such-object")
-        self.assertEqual(code, 2)
-        self.assertIn("'no-such-object'", err)
+        self.assertRefused(["--steps-ms", "7"], "time_step_s: got 0.007")
+        self.assertRefused(["--objects", "no-such-object"], "'no-such-object'")
 
     def test_bad_throw_step_refused_naming_the_flag(self):
-        code, err = self._run("--throw-step-ms", "0.3")
-        self.assertEqual(code, 2)
-        self.assertIn("--throw-step-ms 0.3", err)
-        code, err = self._run("--throw-step-ms", "1", "--flights-only")
-        self.assertEqual(code, 2)
-        self.assertIn("--throw-step-ms: a catch-only study needs maps", err)
+        self.assertRefused(["--throw-step-ms", "0.3"], "--throw-step-ms 0.3")
+        self.assertRefused(["--throw-step-ms", "1", "--flights-only"],
+                           "--throw-step-ms: a catch-only study needs maps")
 
     def test_missing_scenario_file_refused_naming_it(self):
-        code, err = self._run("--scenario", "/no/such/scenario.yaml")
-        self.assertEqual(code, 2)
-        self.assertIn("--scenario: got '/no/such/scenario.yaml'", err)
+        self.assertRefused(["--scenario", "/no/such/scenario.yaml"],
+                           "--scenario: got '/no/such/scenario.yaml'")
 
 
 class OutDirTest(unittest.TestCase):
