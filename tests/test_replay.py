@@ -170,18 +170,23 @@ class ReplayErrorsTest(unittest.TestCase):
             # A stand-in for Chromium that never finishes, with a helper child.
             fake = os.path.join(d, "chromium")
             with open(fake, "w") as f:
-                f.write(f"#!/bin/sh\nsleep 60 &\necho $! >> {d}/pids\nsleep 60\n")
+                f.write(f"#!/bin/sh\necho \"$@\" >> {d}/args\n"
+                        f"sleep 60 &\necho $! >> {d}/pids\nsleep 60\n")
             os.chmod(fake, 0o755)
             html = os.path.join(d, "page.html")
             open(html, "w").close()
             with mock.patch.object(replay, "CHROMIUM", fake):
-                with self.assertRaisesRegex(ReplayError, "more than 0.5 s.*2 times"):
+                with self.assertRaisesRegex(ReplayError, "more than 0.5 s.*3 times"):
                     render_html_to_png(html, os.path.join(d, "x.png"), timeout_s=0.5)
             with open(os.path.join(d, "pids")) as f:
                 helpers = [int(line) for line in f]
-        self.assertEqual(len(helpers), 2)  # Two attempts,
+            with open(os.path.join(d, "args")) as f:
+                budgets = ["--virtual-time-budget=3000" in line for line in f]
+        self.assertEqual(len(helpers), 3)  # Three attempts,
         for pid in helpers:  # each with its helper ended too.
             self.assertFalse(_is_running(pid), pid)
+        # The last without the virtual time budget that can hang Chromium.
+        self.assertEqual(budgets, [True, True, False])
 
     def test_meshcat_disabled_by_environment(self):
         with mock.patch.dict(os.environ, {"DRAKE_ALLOW_NETWORK": "none"}):
