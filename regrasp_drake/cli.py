@@ -429,9 +429,9 @@ def make_parser() -> argparse.ArgumentParser:
                    help="weights file (default models/catch_mlp.pt)")
     p.add_argument("--seed", type=int, default=0,
                    help="seed of the split and the initial weights")
-    p.add_argument("--splits", type=int, default=5, metavar="N",
+    p.add_argument("--splits", type=int, default=20, metavar="N",
                    help="also judge the network over N random splits (seeds "
-                        "seed … seed+N-1; default 5, 1 for none)")
+                        "seed … seed+N-1; default 20, 1 for none)")
     p.set_defaults(func=_cmd_train)
 
     p = sub.add_parser("table1", help="the paper's Table 1: the learning "

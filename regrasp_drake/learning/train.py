@@ -145,9 +145,16 @@ def repeated_splits(data_dir: Path, seeds, *, epochs: int = 3000,
                            epochs=epochs, learning_rate=learning_rate)
             for name in rates:
                 rates[name].append(report["test"][name]["catch_rate"])
+    network = np.array(rates["network"])
     return {"seeds": list(seeds),
             "mean_catch_rate": {k: round(float(np.mean(v)), 4)
                                 for k, v in rates.items()},
+            # Splits on which the network catches more / as many / fewer of
+            # the test objects than each baseline.
+            "network_vs": {k: {"better": int(np.sum(network > np.array(v))),
+                               "equal": int(np.sum(network == np.array(v))),
+                               "worse": int(np.sum(network < np.array(v)))}
+                           for k, v in rates.items() if k != "network"},
             "catch_rates": {k: [round(x, 4) for x in v]
                             for k, v in rates.items()}}
 
