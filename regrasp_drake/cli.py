@@ -58,7 +58,8 @@ def _cmd_objects(args) -> int:
 
 def _cmd_catch(args) -> int:
     from regrasp_drake.station.scenario import check_catch_parameters
-    check_catch_parameters(args.h_catch, args.h_down, prefix="--")
+    check_catch_parameters(args.h_catch, args.h_down,
+                           names=("--h-catch", "--h-down"))
     from regrasp_drake.throw_catch import catch_once
     result, plan = catch_once(
         scenario_path=args.scenario, object_name=args.object,

@@ -32,7 +32,7 @@ class TestCli(unittest.TestCase):
             with self.subTest(flag=flag):
                 self.assertEqual(result.returncode, 2)
                 self.assertEqual(len(result.stderr.strip().splitlines()), 1)
-                self.assertIn(flag.lstrip("-").replace("-", "_"), result.stderr)
+                self.assertIn(f"{flag}: got {value}, expected", result.stderr)
 
     def test_bad_object_file_refused(self):
         with tempfile.TemporaryDirectory() as d:

@@ -101,6 +101,9 @@ class WeightsFileTest(unittest.TestCase):
         with self.assertRaisesRegex(InputError, "weights_only") as cm:
             load_weights(self.path)
         self.assertIn(self.path, str(cm.exception))
+        # The unpickler's reason, not torch's advice to load without the guard.
+        self.assertIn("unsupported GLOBAL posix.getcwd", str(cm.exception))
+        self.assertNotIn("set to `False`", str(cm.exception))
         # Unpickled without the guard, the file would run os.getcwd.
         unguarded = torch.load(self.path, weights_only=False)
         self.assertEqual(unguarded["metadata"]["note"], os.getcwd())

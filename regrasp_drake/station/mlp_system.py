@@ -106,7 +106,7 @@ def load_weights(path) -> tuple[CatchMlp, dict]:
     try:
         data = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as e:  # torch raises many kinds for a bad file.
-        reason = " ".join(str(e).split())[:200]
+        reason = _load_failure(e)
         raise InputError(
             f"{path}: not a weights file loadable with weights_only "
             f"({type(e).__name__}: {reason})"
@@ -195,3 +195,21 @@ class MlpSystem(LeafSystem):
         discrete_state.set_value(
             0, self.parameters_for(self._features_port.Eval(context))
         )
+
+
+def _load_failure(e: Exception) -> str:
+    """What torch.load found wrong, in a few words: the unpickler's own
+    reason when it gives one (not torch's advice to load without weights_only,
+    which would run code from the file), else the first sentence."""
+    advice = ("Weights only load failed", "weights_only", "trusted source",
+              "Check the documentation", "Please file an issue",
+              "Alternatively", "two options")
+    marker = "WeightsUnpickler error:"
+    text = str(e).replace("\x1b[1m", "").replace("\x1b[0m", "")
+    if marker in text:
+        text = text.split(marker, 1)[1]
+    for line in text.splitlines():
+        line = " ".join(line.split())
+        if line and not any(a in line for a in advice):
+            return line.split(". ", 1)[0].rstrip(".")[:160]
+    return " ".join(text.split()).split(". ", 1)[0].rstrip(".")[:160]

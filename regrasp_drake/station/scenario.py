@@ -261,7 +261,8 @@ def validate(s: Scenario) -> Scenario:
     if k.parameter_source not in _SOURCES:
         raise field_error("catch.parameter_source", k.parameter_source,
                           f"one of {_SOURCES}")
-    check_catch_parameters(k.h_catch_m, k.h_down_m, prefix="catch.")
+    check_catch_parameters(k.h_catch_m, k.h_down_m,
+                           names=("catch.h_catch_m", "catch.h_down_m"))
     m = s.monitor
     _in_range("monitor.palm_grasp_level", m.palm_grasp_level, 0, n.levels)
     _in_range("monitor.ir_window_s", m.ir_window_s, 0.0, 2.0, " s")
@@ -278,10 +279,12 @@ H_CATCH_RANGE = (0.0, 0.40)
 H_DOWN_RANGE = (-0.14, 0.0)
 
 
-def check_catch_parameters(h_catch, h_down, prefix=""):
-    """Refuses (h_catch, h_down) outside the paper's parameter space."""
-    _in_range(f"{prefix}h_catch_m", h_catch, *H_CATCH_RANGE, " m")
-    _in_range(f"{prefix}h_down_m", h_down, *H_DOWN_RANGE, " m")
+def check_catch_parameters(h_catch, h_down,
+                           names=("h_catch_m", "h_down_m")):
+    """Refuses (h_catch, h_down) outside the paper's parameter space, naming
+    the offending one by `names`."""
+    _in_range(names[0], h_catch, *H_CATCH_RANGE, " m")
+    _in_range(names[1], h_down, *H_DOWN_RANGE, " m")
 
 
 def load_scenario(path: str | Path | None = None) -> Scenario:
