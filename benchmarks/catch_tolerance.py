@@ -22,6 +22,9 @@ Writes <out>.jsonl (one line per throw, as it finishes; a rerun resumes),
 <out>.png (each object's grid, the predictor's offset marked).
 """
 
+# regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
+# (regrasp_drake/numerics.py), so that results match across x86-64 machines.
+import regrasp_drake  # noqa: F401
 import argparse
 import json
 import sys

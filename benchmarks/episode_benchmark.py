@@ -11,6 +11,9 @@ no Python system, for the same simulated time: the ceiling our Python systems
 leave room for.
 """
 
+# regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
+# (regrasp_drake/numerics.py), so that results match across x86-64 machines.
+import regrasp_drake  # noqa: F401
 import argparse
 import cProfile
 import json

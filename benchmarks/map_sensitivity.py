@@ -23,6 +23,9 @@ it finishes; a rerun resumes), the scenario files used there, <out>.json
 (the figures) and <out>.png (cells changed against the noise level).
 """
 
+# regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
+# (regrasp_drake/numerics.py), so that results match across x86-64 machines.
+import regrasp_drake  # noqa: F401
 import argparse
 import importlib.util
 import json

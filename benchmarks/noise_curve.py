@@ -28,6 +28,9 @@ Writes <out>.jsonl (one line per trial, as it finishes; a rerun resumes),
 <out>.json (catch rate per mode and level) and <out>.png (the curves).
 """
 
+# regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
+# (regrasp_drake/numerics.py), so that results match across x86-64 machines.
+import regrasp_drake  # noqa: F401
 import argparse
 import dataclasses as dc
 import json

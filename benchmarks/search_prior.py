@@ -47,6 +47,9 @@ the map prior with every map weighing alike ("map-prior-uniform").
 Prints a summary and writes the JSON.
 """
 
+# regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
+# (regrasp_drake/numerics.py), so that results match across x86-64 machines.
+import regrasp_drake  # noqa: F401
 import argparse
 import json
 import sys

@@ -19,6 +19,9 @@ that is missing is left out of the picture and named in the JSON's
 "missing" list; a malformed one is refused with one line naming it.
 """
 
+# regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
+# (regrasp_drake/numerics.py), so that results match across x86-64 machines.
+import regrasp_drake  # noqa: F401
 import argparse
 import json
 import sys

@@ -10,6 +10,9 @@ throw_catch.html (the Meshcat replay of throw 2, self-contained) and
 throw_catch.png (the sensors over time), and prints the outcome.
 """
 
+# regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
+# (regrasp_drake/numerics.py), so that results match across x86-64 machines.
+import regrasp_drake  # noqa: F401
 import argparse
 import json
 import sys

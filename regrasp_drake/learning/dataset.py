@@ -211,8 +211,12 @@ def _run_ray(tasks, workers):
         raise InputError("--backend ray: Ray is not installed (pip install "
                          "'regrasp-drake[ray]')") from None
     # RAY_ADDRESS names the cluster; unset, a local Ray starts.
+    from regrasp_drake import numerics
+    # The workers of a cluster do not inherit this process's environment:
+    # pass them the pinned kernels (numerics.py) explicitly.
+    pinned = {k: os.environ[k] for k in numerics.VARIABLES if k in os.environ}
     ray.init(address=os.environ.get("RAY_ADDRESS"), ignore_reinit_error=True,
-             log_to_driver=False)
+             log_to_driver=False, runtime_env={"env_vars": pinned})
     remote = ray.remote(num_cpus=1)(_object_task)
     pending = [remote.remote(t) for t in tasks]
     while pending:
@@ -315,10 +319,12 @@ def _runs(out_dir: Path, provenance: dict) -> list[dict]:
                 "workers": old.get("workers"), "backend": old.get("backend"),
                 "code_version": old.get("code_version")}]
     if provenance["entries_computed"]:
+        from regrasp_drake import numerics
         runs = runs + [{k: provenance[k] for k in (
             "code_version", "workers", "backend")} | {
             "wall_s": provenance["generation_wall_s"],
-            "entries_computed": provenance["entries_computed"]}]
+            "entries_computed": provenance["entries_computed"],
+            "numerics": numerics.status()}]
     return runs
 
 

@@ -1,0 +1,62 @@
+"""benchmarks/release_spin.py: the state it reports is the data set's, and
+bad input is refused."""
+
+import importlib.util
+import json
+import unittest
+from pathlib import Path
+
+import numpy as np
+
+from regrasp_drake.paths import MODELS_DIR
+from tests.refusals import RefusalAssertions
+
+_PATH = Path(__file__).parents[1] / "benchmarks" / "release_spin.py"
+_spec = importlib.util.spec_from_file_location("release_spin", _PATH)
+release_spin = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(release_spin)
+
+
+class ThrowTest(unittest.TestCase):
+    def test_shipped_release_time_gives_the_data_sets_state(self):
+        """At the shipped 0.31 s the throw's end state is the one the data
+        set stored for the flight predictor; opening the fingers 50 ms later
+        changes it."""
+        plan = json.loads((MODELS_DIR / "dataset" / "plans" /
+                           "can-d350-6.json").read_text())
+        row = release_spin._throw(("can-d350-6", 0.31))
+        self.assertAlmostEqual(row["t_s"], plan["free_flight"]["t_s"])
+        np.testing.assert_allclose(row["state"], plan["free_flight"]["state"],
+                                   atol=1e-9)
+        later = release_spin._throw(("can-d350-6", 0.36))
+        self.assertGreater(np.max(np.abs(np.subtract(later["state"],
+                                                     row["state"]))), 1e-6)
+
+    def test_summary_spreads(self):
+        rows = [{"object": f"g-{k}", "geometry": "g", "release_time_s": 0.31,
+                 "w_O": [0.0, w, 0.0]} for k, w in enumerate((-1.0, -3.0))]
+        rows.append({"object": "h-1", "geometry": "h", "release_time_s": 0.31,
+                     "w_O": [0.0, -8.0, 0.0]})
+        s = release_spin.summarize(rows, [0.31])["0.31"]
+        self.assertEqual(s["spin_std_within_geometry_rad_per_s"],
+                         {"g": 1.0, "h": 0.0})
+        self.assertEqual(s["mean_within_geometry_std_rad_per_s"], 0.5)
+        self.assertEqual((s["spin_min_rad_per_s"], s["spin_max_rad_per_s"]),
+                         (-8.0, -1.0))
+
+
+class BadInputTest(RefusalAssertions, unittest.TestCase):
+    main = staticmethod(release_spin.main)
+
+    def test_release_time_after_the_throw_refused_naming_it(self):
+        self.assertRefused(["--release-times-s", "0.6"],
+                           "--release-times-s 0.6: throw.release_time_s: "
+                           "got 0.6, expected a number in [0.0, 0.564] s")
+
+    def test_unknown_object_and_bad_workers_refused(self):
+        self.assertRefused(["--objects", "no-such-object"], "'no-such-object'")
+        self.assertRefused(["--workers", "0"], "--workers 0: expected >= 1")
+
+
+if __name__ == "__main__":
+    unittest.main()
