@@ -25,7 +25,7 @@ it finishes; a rerun resumes), the scenario files used there, <out>.json
 
 # regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
 # (regrasp_drake/numerics.py), so that results match across x86-64 machines.
-import regrasp_drake  # noqa: F401
+import regrasp_drake  # noqa: F401, I001 (first, see above)
 import argparse
 import importlib.util
 import json

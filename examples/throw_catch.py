@@ -12,7 +12,7 @@ throw_catch.png (the sensors over time), and prints the outcome.
 
 # regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
 # (regrasp_drake/numerics.py), so that results match across x86-64 machines.
-import regrasp_drake  # noqa: F401
+import regrasp_drake  # noqa: F401, I001 (first, see above)
 import argparse
 import json
 import sys

@@ -1,0 +1,54 @@
+"""regrasp_drake/numerics.py: NumPy's and OpenBLAS's kernels pinned before
+NumPy is imported, and left alone when the user chose or it is too late."""
+
+import json
+import os
+import subprocess
+import sys
+import unittest
+from unittest import mock
+
+from regrasp_drake import numerics
+
+_AVX2 = {"avx2", "fma"} <= numerics._cpu_flags()
+_PROBE = ("import regrasp_drake, json; from regrasp_drake import numerics; "
+          "print(json.dumps(numerics.status()))")
+
+
+def _status_in_a_fresh_process(**env) -> dict:
+    clean = {k: v for k, v in os.environ.items() if k not in (
+        "NPY_DISABLE_CPU_FEATURES", "NPY_ENABLE_CPU_FEATURES",
+        "OPENBLAS_CORETYPE")}
+    out = subprocess.run([sys.executable, "-c", _PROBE], env=clean | env,
+                         capture_output=True, text=True, check=True)
+    return json.loads(out.stdout)
+
+
+@unittest.skipUnless(_AVX2, "not an x86-64 CPU with AVX2 and FMA")
+class PinTest(unittest.TestCase):
+    def test_a_fresh_process_runs_the_avx2_kernels(self):
+        status = _status_in_a_fresh_process()
+        self.assertFalse(status["numpy_avx512_kernels"])
+        self.assertEqual(status["openblas_coretype"], "Haswell")
+
+    def test_the_users_choice_is_kept(self):
+        status = _status_in_a_fresh_process(OPENBLAS_CORETYPE="Sandybridge")
+        self.assertEqual(status["openblas_coretype"], "Sandybridge")
+        # NumPy refuses both variables at once: with the user's
+        # NPY_ENABLE_CPU_FEATURES the pin sets no NPY_DISABLE_CPU_FEATURES.
+        status = _status_in_a_fresh_process(NPY_ENABLE_CPU_FEATURES="X86_V3")
+        self.assertFalse(status["numpy_avx512_kernels"])
+
+    def test_the_test_process_is_pinned(self):
+        # tests/__init__.py imports the package before any NumPy import.
+        self.assertFalse(numerics.status()["numpy_avx512_kernels"])
+
+    def test_too_late_once_numpy_is_imported(self):
+        with mock.patch.dict(os.environ, clear=True):
+            numerics.pin()  # NumPy is loaded in this process: no effect.
+            self.assertNotIn("OPENBLAS_CORETYPE", os.environ)
+            self.assertNotIn("NPY_DISABLE_CPU_FEATURES", os.environ)
+
+
+if __name__ == "__main__":
+    unittest.main()
