@@ -1,7 +1,19 @@
-"""A shared assertion for the benchmark scripts' bad-input tests."""
+"""Shared by the benchmark scripts' tests: loading a script as a module, and
+the bad-input assertion."""
 
 import contextlib
+import importlib.util
 import io
+from pathlib import Path
+
+
+def load_benchmark(name: str):
+    """benchmarks/<name>.py, imported as the module `name`."""
+    path = Path(__file__).parents[1] / "benchmarks" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 class RefusalAssertions:

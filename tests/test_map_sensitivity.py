@@ -1,17 +1,12 @@
 """benchmarks/map_sensitivity.py: cells changed against chance, bad input."""
 
-import importlib.util
 import unittest
-from pathlib import Path
 
 import numpy as np
 
-from tests.refusals import RefusalAssertions
+from tests.refusals import RefusalAssertions, load_benchmark
 
-_PATH = Path(__file__).parents[1] / "benchmarks" / "map_sensitivity.py"
-_spec = importlib.util.spec_from_file_location("map_sensitivity", _PATH)
-sensitivity = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(sensitivity)
+sensitivity = load_benchmark("map_sensitivity")
 
 
 def _row(caught, w_O=(0.0, 0.0, 0.0)):

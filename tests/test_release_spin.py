@@ -1,20 +1,15 @@
 """benchmarks/release_spin.py: the state it reports is the data set's, and
 bad input is refused."""
 
-import importlib.util
 import json
 import unittest
-from pathlib import Path
 
 import numpy as np
 
 from regrasp_drake.paths import MODELS_DIR
-from tests.refusals import RefusalAssertions
+from tests.refusals import RefusalAssertions, load_benchmark
 
-_PATH = Path(__file__).parents[1] / "benchmarks" / "release_spin.py"
-_spec = importlib.util.spec_from_file_location("release_spin", _PATH)
-release_spin = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(release_spin)
+release_spin = load_benchmark("release_spin")
 
 
 class ThrowTest(unittest.TestCase):

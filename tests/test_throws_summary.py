@@ -1,15 +1,13 @@
 """benchmarks/throws_summary.py: reading table1's results, refusing bad ones."""
 
-import importlib.util
 import json
 import tempfile
 import unittest
 from pathlib import Path
 
-_PATH = Path(__file__).parents[1] / "benchmarks" / "throws_summary.py"
-_spec = importlib.util.spec_from_file_location("throws_summary", _PATH)
-summary = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(summary)
+from tests.refusals import load_benchmark
+
+summary = load_benchmark("throws_summary")
 
 
 def _row(name, throws, caught=True, trials=None):

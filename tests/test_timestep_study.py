@@ -1,18 +1,14 @@
 """benchmarks/timestep_study.py: map agreement against chance, bad input."""
 
-import importlib.util
 import unittest
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 
-from tests.refusals import RefusalAssertions
+from tests.refusals import RefusalAssertions, load_benchmark
 
-_PATH = Path(__file__).parents[1] / "benchmarks" / "timestep_study.py"
-_spec = importlib.util.spec_from_file_location("timestep_study", _PATH)
-study = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(study)
+study = load_benchmark("timestep_study")
 
 
 class AgreementTest(unittest.TestCase):
