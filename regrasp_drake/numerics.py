@@ -64,8 +64,10 @@ def status() -> dict:
     """What this process runs with: whether NumPy dispatches to AVX-512
     kernels, the OpenBLAS core type asked for, and whether the CPU has
     AVX-512. For provenance."""
-    import numpy as np
-    features = np._core._multiarray_umath.__cpu_features__
+    try:  # NumPy 2; NumPy 1 calls the module numpy.core.
+        from numpy._core._multiarray_umath import __cpu_features__ as features
+    except ImportError:
+        from numpy.core._multiarray_umath import __cpu_features__ as features
     return {"numpy_avx512_kernels": any(
                 features.get(k, False) for k in NUMPY_DISABLED.split()),
             "openblas_coretype": os.environ.get("OPENBLAS_CORETYPE"),
