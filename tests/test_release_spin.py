@@ -19,20 +19,25 @@ class ThrowTest(unittest.TestCase):
         changes it."""
         plan = json.loads((MODELS_DIR / "dataset" / "plans" /
                            "can-d350-6.json").read_text())
-        row = release_spin._throw(("can-d350-6", 0.31))
+        row = release_spin._throw(("can-d350-6", 0.31, 0.5))
         self.assertAlmostEqual(row["t_s"], plan["free_flight"]["t_s"])
         np.testing.assert_allclose(row["state"], plan["free_flight"]["state"],
                                    atol=1e-9)
-        later = release_spin._throw(("can-d350-6", 0.36))
+        later = release_spin._throw(("can-d350-6", 0.36, 0.5))
         self.assertGreater(np.max(np.abs(np.subtract(later["state"],
                                                      row["state"]))), 1e-6)
 
     def test_summary_spreads(self):
         rows = [{"object": f"g-{k}", "geometry": "g", "release_time_s": 0.31,
-                 "w_O": [0.0, w, 0.0]} for k, w in enumerate((-1.0, -3.0))]
+                 "hold_closure": 0.5, "w_O": [0.0, w, 0.0]}
+                for k, w in enumerate((-1.0, -3.0))]
         rows.append({"object": "h-1", "geometry": "h", "release_time_s": 0.31,
-                     "w_O": [0.0, -8.0, 0.0]})
-        s = release_spin.summarize(rows, [0.31])["0.31"]
+                     "hold_closure": 0.5, "w_O": [0.0, -8.0, 0.0]})
+        # Another configuration's throw is not counted in this one's.
+        rows.append({"object": "h-1", "geometry": "h", "release_time_s": 0.31,
+                     "hold_closure": 0.8, "w_O": [0.0, 5.0, 0.0]})
+        s = release_spin.summarize(rows, [(0.31, 0.5)])[
+            "release 0.31 s, hold 0.5"]
         self.assertEqual(s["spin_std_within_geometry_rad_per_s"],
                          {"g": 1.0, "h": 0.0})
         self.assertEqual(s["mean_within_geometry_std_rad_per_s"], 0.5)
@@ -47,6 +52,10 @@ class BadInputTest(RefusalAssertions, unittest.TestCase):
         self.assertRefused(["--release-times-s", "0.6"],
                            "--release-times-s 0.6: throw.release_time_s: "
                            "got 0.6, expected a number in [0.0, 0.564] s")
+
+    def test_hold_closure_out_of_range_refused_naming_it(self):
+        self.assertRefused(["--hold-closures", "1.5"],
+                           "--hold-closures 1.5: throw.hold_closure: got 1.5")
 
     def test_unknown_object_and_bad_workers_refused(self):
         self.assertRefused(["--objects", "no-such-object"], "'no-such-object'")
