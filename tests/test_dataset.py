@@ -148,6 +148,11 @@ class GenerateTest(unittest.TestCase):
                     plan["features"][k] for k in FEATURE_NAMES])
         provenance = json.loads((out / "provenance.json").read_text())
         self.assertIn("time_step_s", provenance["scenario"])
+        # The run records the kernels it computed with (numerics.py): this
+        # test process is pinned, so no AVX-512 kernels.
+        from regrasp_drake import numerics
+        self.assertEqual(provenance["runs"][-1]["numerics"], numerics.status())
+        self.assertFalse(provenance["runs"][-1]["numerics"]["numpy_avx512_kernels"])
         self.assertEqual(len(provenance["catalogue_sha256"]), 64)
         # One run computed both entries; its record is kept.
         self.assertEqual(provenance["entries_computed"], 2)
