@@ -4,14 +4,17 @@ the bad-input assertion."""
 import contextlib
 import importlib.util
 import io
+import sys
 from pathlib import Path
 
 
 def load_benchmark(name: str):
-    """benchmarks/<name>.py, imported as the module `name`."""
+    """benchmarks/<name>.py, imported as the module `name` (registered in
+    sys.modules, so that its functions pickle for a process pool)."""
     path = Path(__file__).parents[1] / "benchmarks" / f"{name}.py"
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
     spec.loader.exec_module(module)
     return module
 

@@ -1,8 +1,12 @@
 """benchmarks/release_spin.py: the state it reports is the data set's, and
 bad input is refused."""
 
+import contextlib
+import io
 import json
+import tempfile
 import unittest
+from pathlib import Path
 
 import numpy as np
 
@@ -43,6 +47,24 @@ class ThrowTest(unittest.TestCase):
         self.assertEqual(s["mean_within_geometry_std_rad_per_s"], 0.5)
         self.assertEqual((s["spin_min_rad_per_s"], s["spin_max_rad_per_s"]),
                          (-8.0, -1.0))
+
+
+class ResumeTest(unittest.TestCase):
+    def test_a_rerun_throws_nothing_again(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            out = Path(tmp) / "spin"
+            argv = ["--objects", "can-d350-6", "--release-times-s", "0.31",
+                    "--workers", "1", "--out", str(out)]
+            with contextlib.redirect_stdout(io.StringIO()), \
+                    contextlib.redirect_stderr(io.StringIO()):
+                self.assertEqual(release_spin.main(argv), 0)
+                first = json.loads(out.with_suffix(".json").read_text())
+                self.assertEqual(release_spin.main(argv), 0)
+            lines = out.with_suffix(".jsonl").read_text().splitlines()
+            self.assertEqual(len(lines), 1)  # thrown once, not twice
+            self.assertEqual(json.loads(out.with_suffix(".json").read_text()),
+                             first)
+            self.assertTrue(out.with_suffix(".png").exists())
 
 
 class BadInputTest(RefusalAssertions, unittest.TestCase):
