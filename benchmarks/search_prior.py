@@ -61,9 +61,8 @@ from regrasp_drake.learning.dataset import label_cell, object_of
 from regrasp_drake.learning.search import (
     FEATURE_SIGMA,
     attempts_to_catch,
-    feature_weights,
+    feature_weighted_order,
     load_prior_maps,
-    map_prior_order,
     wavefront_order,
 )
 from regrasp_drake.paths import MODELS_DIR
@@ -82,10 +81,9 @@ def search_order(search: str, start, prior, prior_features=None,
     weighted map prior, their entries' features and the object's)."""
     if search == "wavefront":
         return wavefront_order(start)
-    weights = None
-    if search == "map-prior":
-        weights = feature_weights(features, prior_features, sigma)
-    return map_prior_order(start, prior, weights=weights)
+    return feature_weighted_order(
+        start, prior, prior_features if search == "map-prior" else None,
+        features, sigma)
 
 
 def statistics(counts: dict) -> dict:

@@ -166,9 +166,8 @@ def table1_throws(obj, plan, caught) -> dict:
     from regrasp_drake.learning.learning_phase import network_features, predict
     from regrasp_drake.learning.search import (
         attempts_to_catch,
-        feature_weights,
+        feature_weighted_order,
         load_prior_maps,
-        map_prior_order,
         wavefront_order,
     )
     from regrasp_drake.paths import MODELS_DIR
@@ -177,12 +176,11 @@ def table1_throws(obj, plan, caught) -> dict:
     features = network_features(obj, plan.catch_point)
     start = nearest_cell(*predict(model, features)[1])
     _, prior, prior_features = load_prior_maps(with_features=True)
-    weights = (None if prior_features is None
-               else feature_weights(features, prior_features))
     out = {"network_cell": list(start)}
     for search, order in (
             ("wavefront", wavefront_order(start)),
-            ("map_prior", map_prior_order(start, prior, weights=weights))):
+            ("map_prior", feature_weighted_order(start, prior, prior_features,
+                                                 features))):
         n = attempts_to_catch(order, caught)
         out[f"throws_{search}"] = None if n is None else n + 1
     return out

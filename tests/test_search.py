@@ -19,6 +19,7 @@ from regrasp_drake.learning.dataset import object_of
 from regrasp_drake.learning.search import (
     FEATURE_SIGMA,
     attempts_to_catch,
+    feature_weighted_order,
     feature_weights,
     load_prior_maps,
     map_prior_order,
@@ -245,6 +246,23 @@ class TestMapPriorOrder(unittest.TestCase):
                     self.assertRaises(InputError) as e:
                 map_prior_order(start, maps, weights=weights)
             self.assertIn("weights", str(e.exception))
+
+    def test_feature_weighted_order_follows_the_like_objects(self):
+        """The object's features next to kind B's entries: the second cell
+        is kind B's catching cell; without prior features, every map counts
+        alike and the search is the unweighted one."""
+        kind_a, kind_b = block((0, 0), (0, 0)), block((9, 9), (14, 14))
+        maps = np.array([kind_a, kind_a, kind_a, kind_b])
+        prior_features = np.array([[0.0] * 5, [0.1] * 5, [0.2] * 5,
+                                   [3.0] * 5])
+        start = (5, 7)
+        near_b = feature_weighted_order(start, maps, prior_features,
+                                        np.full(5, 3.0))
+        self.assertEqual(list(itertools.islice(near_b, 2)), [start, (9, 14)])
+        alike = feature_weighted_order(start, maps, None, np.full(5, 3.0))
+        self.assertEqual(list(itertools.islice(alike, 150)),
+                         list(itertools.islice(map_prior_order(start, maps),
+                                               150)))
 
     def test_shipped_prior_has_features_and_the_kernel_width_is_positive(self):
         names, caught, features = load_prior_maps(with_features=True)

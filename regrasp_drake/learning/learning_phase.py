@@ -56,9 +56,8 @@ from regrasp_drake.learning import library as lib
 from regrasp_drake.learning.flight_predictor import flight_from_release
 from regrasp_drake.learning.search import (
     SEARCHES,
-    feature_weights,
+    feature_weighted_order,
     load_prior_maps,
-    map_prior_order,
     wavefront_order,
 )
 from regrasp_drake.planning.catch_plan import (
@@ -341,9 +340,8 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
                f"{plan.catch_point.v_catch:.3f} m/s; network: h_catch "
                f"{raw[0]:.3f} m, h_down {raw[1]:.3f} m -> start cell {start}")
         if search == "map-prior":
-            weights = (None if prior_features is None
-                       else feature_weights(features, prior_features))
-            order = map_prior_order(start, prior_maps, weights=weights)
+            order = feature_weighted_order(start, prior_maps, prior_features,
+                                           features)
         else:
             order = iter(wavefront_order(start))
         return features, raw, prediction, start, order
