@@ -1,0 +1,70 @@
+"""benchmarks/episode_benchmark.py: the physics it times alone is the
+episode's physics, bit for bit."""
+
+import unittest
+
+import torch
+
+from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station.episode import run_episode
+from regrasp_drake.station.scenario import load_scenario
+from regrasp_drake.station.station import build_station
+from regrasp_drake.throw_catch import plan_catch, watch
+from regrasp_drake.world.objects import resolve_object
+from tests.refusals import load_benchmark
+
+episode_benchmark = load_benchmark("episode_benchmark")
+
+
+class ReplayTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        torch.set_num_threads(1)
+        cls.scenario = load_scenario()
+        cls.obj = resolve_object(name="table1-row2")
+        cls.ik = ArmIk()
+        cls.plan = plan_catch(cls.scenario, cls.obj, cls.ik,
+                              watch(cls.scenario, cls.obj, cls.ik))
+        cls.params = (cls.scenario.catch.h_catch_m, cls.scenario.catch.h_down_m)
+        cls.episode = run_episode(cls.scenario, cls.obj, ik=cls.ik,
+                                  X_WG=cls.plan.X_WG,
+                                  catch_parameters=cls.params)
+        cls.t_fork = 1.268
+        (cls.u_arm, cls.u_hand, cls.x_fork, cls.x_end,
+         cls.p_WO_end) = episode_benchmark.record_plant_inputs(
+            cls.scenario, cls.obj, cls.ik, cls.plan.X_WG, cls.params,
+            cls.t_fork)
+        cls.X_WO = build_station(cls.scenario, cls.obj, ik=cls.ik,
+                                 X_WG=cls.plan.X_WG,
+                                 catch_parameters=cls.params).X_WO_initial
+
+    def test_recording_run_is_the_episode(self):
+        """Stepping the episode to read the plant's inputs changes nothing:
+        it ends where run_episode ends, at the same time."""
+        self.assertEqual(self.episode.outcome, "caught")
+        self.assertEqual(self.p_WO_end, self.episode.p_WO_final)
+        steps = round(self.episode.sim_time_s / self.scenario.time_step_s)
+        self.assertEqual(len(self.u_arm), steps + 1)
+
+    def test_replay_ends_in_the_episodes_state(self):
+        for t_start, x_start in ((0.0, None), (self.t_fork, self.x_fork)):
+            wall, same = episode_benchmark.replayed_physics_wall_s(
+                self.scenario, self.obj, self.X_WO, self.u_arm, self.u_hand,
+                t_start, x_start, self.x_end)
+            self.assertTrue(same, t_start)
+            self.assertGreater(wall, 0.0)
+
+    def test_replay_with_other_inputs_ends_elsewhere(self):
+        """The check is not vacuous: one arm torque 1e-9 N·m off, one step
+        after the fork, and the final state differs."""
+        u_arm = self.u_arm.copy()
+        k = round(self.t_fork / self.scenario.time_step_s) + 1
+        u_arm[k, 1] += 1e-9
+        _, same = episode_benchmark.replayed_physics_wall_s(
+            self.scenario, self.obj, self.X_WO, u_arm, self.u_hand,
+            self.t_fork, self.x_fork, self.x_end)
+        self.assertFalse(same)
+
+
+if __name__ == "__main__":
+    unittest.main()
