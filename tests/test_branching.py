@@ -3,23 +3,17 @@
 import unittest
 
 import numpy as np
-import torch
 
 from regrasp_drake.grid import plan_object
-from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.branching import run_cells
 from regrasp_drake.station.episode import run_episode
-from regrasp_drake.station.scenario import load_scenario
-from regrasp_drake.world.objects import resolve_object
+from tests.fixtures import Row2Fixture
 
 
-class RunCellsTest(unittest.TestCase):
+class RunCellsTest(Row2Fixture, unittest.TestCase):
     @classmethod
     def setUpClass(cls):
-        torch.set_num_threads(1)
-        cls.scenario = load_scenario()
-        cls.obj = resolve_object(name="table1-row2")
-        cls.ik = ArmIk()
+        super().setUpClass()
         cls.plan = plan_object(cls.scenario, cls.obj, cls.ik)
 
     def test_forked_cells_equal_whole_episodes(self):

@@ -3,28 +3,20 @@ episode's physics, bit for bit."""
 
 import unittest
 
-import torch
-
-from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.grid import plan_object
 from regrasp_drake.station.episode import run_episode
-from regrasp_drake.station.scenario import load_scenario
 from regrasp_drake.station.station import build_station
-from regrasp_drake.throw_catch import plan_catch, watch
-from regrasp_drake.world.objects import resolve_object
+from tests.fixtures import Row2Fixture
 from tests.refusals import load_benchmark
 
 episode_benchmark = load_benchmark("episode_benchmark")
 
 
-class ReplayTest(unittest.TestCase):
+class ReplayTest(Row2Fixture, unittest.TestCase):
     @classmethod
     def setUpClass(cls):
-        torch.set_num_threads(1)
-        cls.scenario = load_scenario()
-        cls.obj = resolve_object(name="table1-row2")
-        cls.ik = ArmIk()
-        cls.plan = plan_catch(cls.scenario, cls.obj, cls.ik,
-                              watch(cls.scenario, cls.obj, cls.ik))
+        super().setUpClass()
+        cls.plan = plan_object(cls.scenario, cls.obj, cls.ik)
         cls.params = (cls.scenario.catch.h_catch_m, cls.scenario.catch.h_down_m)
         cls.episode = run_episode(cls.scenario, cls.obj, ik=cls.ik,
                                   X_WG=cls.plan.X_WG,

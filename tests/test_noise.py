@@ -5,27 +5,19 @@ import dataclasses as dc
 import unittest
 
 import numpy as np
-import torch
 
 from regrasp_drake.errors import InputError
-from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.catch_state_machine import ThrowPerturbation
 from regrasp_drake.station.episode import run_episode
-from regrasp_drake.station.scenario import ThrowNoise, load_scenario, validate
-from regrasp_drake.world.objects import resolve_object
+from regrasp_drake.station.scenario import ThrowNoise, validate
+from tests.fixtures import Row2Fixture
 
 
 def _with_noise(scenario, noise):
     return dc.replace(scenario, throw=dc.replace(scenario.throw, noise=noise))
 
 
-class ThrowNoiseTest(unittest.TestCase):
-    @classmethod
-    def setUpClass(cls):
-        torch.set_num_threads(1)
-        cls.scenario = load_scenario()
-        cls.obj = resolve_object(name="table1-row2")
-        cls.ik = ArmIk()
+class ThrowNoiseTest(Row2Fixture, unittest.TestCase):
 
     def _flight(self, scenario, throw_number=1):
         return run_episode(scenario, self.obj, ik=self.ik, X_WG=None,
