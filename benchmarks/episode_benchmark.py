@@ -28,6 +28,7 @@ from pathlib import Path
 
 import torch
 
+from regrasp_drake.errors import InputError
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.catch_state_machine import Phase
 from regrasp_drake.station.episode import advance_to_outcome, run_episode
@@ -48,10 +49,11 @@ _PYTHON_SYSTEMS = {
 def record_plant_inputs(scenario, obj, ik, X_WG, params, t_split):
     """Runs the episode step by step to its end and returns what its plant
     was given: the arm's actuation and the fingers' desired state at every
-    plant step (each a (steps, n) array), the plant's state at t_split and
-    at the end, and the object's final position (to compare with the
-    episode's: stepping this way changes nothing). An input port evaluated
-    between steps gives the value the plant's next step reads."""
+    plant step (each a (steps, n) array), the plant's state at t_split
+    (None past the end) and at the end, and the object's final position (to
+    compare with the episode's: stepping this way changes nothing). An input
+    port evaluated between steps gives the value the plant's next step
+    reads."""
     import numpy as np
     station = build_station(scenario, obj, ik=ik, X_WG=X_WG,
                             catch_parameters=params)
@@ -60,6 +62,7 @@ def record_plant_inputs(scenario, obj, ik, X_WG, params, t_split):
     context = plant.GetMyContextFromRoot(simulator.get_context())
     dt = scenario.time_step_s
     k_split = round(t_split / dt)
+    x_split = None
     u_arm, u_hand = [], []
     k = 0
     while True:
@@ -143,16 +146,25 @@ def episode_from_wall_s(scenario, obj, ik, X_WG, params, t_start) -> float:
     return time.perf_counter() - t0
 
 
-def main() -> int:
+def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--object", default="table1-row2")
     parser.add_argument("--runs", type=int, default=5)
     parser.add_argument("--json", type=Path,
                         default=Path("benchmarks/episode_benchmark.json"))
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
+    try:
+        if args.runs < 1:
+            raise InputError(f"--runs {args.runs}: expected >= 1")
+        try:
+            obj = resolve_object(name=args.object)
+        except InputError as e:
+            raise InputError(f"--object {args.object}: {e}") from None
+    except InputError as e:
+        print(f"episode_benchmark: error: {e}", file=sys.stderr)
+        return 2
     torch.set_num_threads(1)
     scenario = load_scenario()
-    obj = resolve_object(name=args.object)
     ik = ArmIk()
     plan = plan_catch(scenario, obj, ik, watch(scenario, obj, ik))
     params = (scenario.catch.h_catch_m, scenario.catch.h_down_m)
@@ -198,6 +210,11 @@ def main() -> int:
     # one sample: where a success map forks this cell) to the end.
     logs = results[0].logs
     lower = [t for t, p in zip(logs.t, logs.phase) if p >= Phase.LOWER]
+    if not lower:
+        print(f"episode_benchmark: error: --object {obj.name}: the hand never "
+              f"lowered (outcome {results[0].outcome}), expected an object "
+              "whose episode reaches the catch", file=sys.stderr)
+        return 2
     t_fork = round(lower[0] - scenario.sensors.period_s, 6)
     u_arm, u_hand, x_fork, x_end, p_WO_end = record_plant_inputs(
         scenario, obj, ik, plan.X_WG, params, t_fork)

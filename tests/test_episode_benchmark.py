@@ -7,7 +7,7 @@ from regrasp_drake.grid import plan_object
 from regrasp_drake.station.episode import run_episode
 from regrasp_drake.station.station import build_station
 from tests.fixtures import Row2Fixture
-from tests.refusals import load_benchmark
+from tests.refusals import RefusalAssertions, load_benchmark
 
 episode_benchmark = load_benchmark("episode_benchmark")
 
@@ -56,6 +56,14 @@ class ReplayTest(Row2Fixture, unittest.TestCase):
             self.scenario, self.obj, self.X_WO, u_arm, self.u_hand,
             self.t_fork, self.x_fork, self.x_end)
         self.assertFalse(same)
+
+
+class BadInputTest(RefusalAssertions, unittest.TestCase):
+    main = staticmethod(episode_benchmark.main)
+
+    def test_refusals(self):
+        self.assertRefused(["--runs", "0"], "--runs 0", "expected >= 1")
+        self.assertRefused(["--object", "nope"], "--object nope", "expected")
 
 
 if __name__ == "__main__":
