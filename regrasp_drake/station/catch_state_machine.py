@@ -131,7 +131,6 @@ class CatchStateMachine(LeafSystem):
         self._throw = scenario.throw
         self._catch = scenario.catch
         self._levels = scenario.sensors.levels
-        self._palm_range = scenario.sensors.palm_range_m
         self._approach_range = scenario.sensors.approach_range_m
         self._open = np.asarray(hand_open, float)
         self._closed = np.asarray(hand_closed, float)
@@ -166,7 +165,6 @@ class CatchStateMachine(LeafSystem):
         x0[_T_OPEN] = self._t_release
         x0[_QA] = x0[_QB] = self._q_start
         x0[_T] = 1.0
-        self._x0 = x0
         self._state = self.DeclareDiscreteState(x0)
         # The references for the current step: arm (q, v), arm acceleration,
         # fingers (q, v).
