@@ -2,25 +2,26 @@
 
     .venv/bin/python benchmarks/episode_benchmark.py [--object table1-row2] [--runs 5]
         [--json benchmarks/episode_benchmark.json]
+        [--png benchmarks/episode_benchmark.png]
 
-Prints the figures and writes them as JSON. Not a test: machines are noisy;
-compare figures from one run. For comparison, the same run times the
-episode's physics alone: the same plant (arm, hand, object, ground; same
-time step and contact) replayed with the inputs the episode gave it at every
-step, with no controller and no Python system. It ends in the episode's
-final state bit for bit (checked: `identical_final_state`), so it is the
-same physics, contact for contact: what no change to the systems around the
-plant can go below. It is timed over the whole episode and from the cell's
-fork (the trigger: what each forked cell of a success map simulates).
+Prints the figures and writes them as JSON, and a PNG of the split (physics
+alone, our Python callbacks, the rest). Not a test: machines are noisy;
+compare figures from one run. Our Python callbacks are timed from inside
+(CallbackTimer). For comparison, the same run times the episode's physics
+alone: the same plant (arm, hand, object, ground; same time step and
+contact) replayed with the inputs the episode gave it at every step, with no
+controller and no Python system. It ends in the episode's final state bit
+for bit (checked: `identical_final_state`), so it is the same physics,
+contact for contact: what no change to the systems around the plant can go
+below. Both are measured over the whole episode and from the cell's fork
+(the trigger: what each forked cell of a success map simulates).
 """
 
 # regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
 # (regrasp_drake/numerics.py), so that results match across x86-64 machines.
 import regrasp_drake  # noqa: F401, I001 (first, see above)
 import argparse
-import cProfile
 import json
-import pstats
 import statistics
 import sys
 import time
@@ -37,13 +38,55 @@ from regrasp_drake.station.station import build_station, initialize
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world.objects import resolve_object
 
-# Python callbacks of our systems, grouped by system.
-_PYTHON_SYSTEMS = {
-    "infrared sensors": ("sensors.py", "read_levels"),
-    "tactile bumper": ("sensors.py", "_sample"),
-    "catch state machine": ("catch_state_machine.py", None),
-    "grasp monitor": ("grasp_monitor.py", "_update"),
-}
+class CallbackTimer:
+    """Times our systems' Python callbacks from inside (perf_counter around
+    each call; cProfile, used here before, inflated these small calls
+    several times). Use as a context manager around building and running a
+    station: the events bind the callbacks when a system is constructed."""
+
+    def __init__(self):
+        from regrasp_drake.station.catch_state_machine import CatchStateMachine
+        from regrasp_drake.station.grasp_monitor import GraspMonitor
+        from regrasp_drake.station.sensors import InfraredSensors, TactileBumper
+        self._callbacks = {
+            "infrared sensors": (InfraredSensors, "_sample"),
+            "tactile bumper": (TactileBumper, "_sample"),
+            "catch state machine": (CatchStateMachine, "_update"),
+            "grasp monitor": (GraspMonitor, "_update"),
+        }
+        self.seconds = dict.fromkeys(self._callbacks, 0.0)
+        self.calls = dict.fromkeys(self._callbacks, 0)
+        self._originals = {}
+
+    def reset(self):
+        """Counts from here on only."""
+        for name in self.seconds:
+            self.seconds[name], self.calls[name] = 0.0, 0
+
+    def __enter__(self):
+        for name, (cls, attr) in self._callbacks.items():
+            original = self._originals[name] = getattr(cls, attr)
+
+            def timed(system, *args, _original=original, _name=name):
+                t0 = time.perf_counter()
+                try:
+                    return _original(system, *args)
+                finally:
+                    self.seconds[_name] += time.perf_counter() - t0
+                    self.calls[_name] += 1
+            setattr(cls, attr, timed)
+        return self
+
+    def __exit__(self, *exc):
+        for name, (cls, attr) in self._callbacks.items():
+            setattr(cls, attr, self._originals[name])
+
+    def report(self) -> dict:
+        return {name: {"s": round(self.seconds[name], 4),
+                       "calls": self.calls[name],
+                       "us_per_call": round(1e6 * self.seconds[name]
+                                            / max(1, self.calls[name]), 1)}
+                for name in self.seconds}
 
 
 def record_plant_inputs(scenario, obj, ik, X_WG, params, t_split):
@@ -134,13 +177,17 @@ def replayed_physics_wall_s(scenario, obj, X_WO_initial, u_arm, u_hand,
         plant.GetPositionsAndVelocities(context), x_end))
 
 
-def episode_from_wall_s(scenario, obj, ik, X_WG, params, t_start) -> float:
+def episode_from_wall_s(scenario, obj, ik, X_WG, params, t_start,
+                        timer=None) -> float:
     """Wall time of the whole episode's simulation from t_start to its end
-    (what a forked cell of a success map runs, when t_start is the fork)."""
+    (what a forked cell of a success map runs, when t_start is the fork).
+    `timer`, a CallbackTimer already entered: it counts from t_start."""
     station = build_station(scenario, obj, ik=ik, X_WG=X_WG,
                             catch_parameters=params)
     simulator = initialize(station, scenario)
     simulator.AdvanceTo(t_start)
+    if timer is not None:
+        timer.reset()
     t0 = time.perf_counter()
     advance_to_outcome(simulator, station, scenario)
     return time.perf_counter() - t0
@@ -152,6 +199,8 @@ def main(argv=None) -> int:
     parser.add_argument("--runs", type=int, default=5)
     parser.add_argument("--json", type=Path,
                         default=Path("benchmarks/episode_benchmark.json"))
+    parser.add_argument("--png", type=Path,
+                        default=Path("benchmarks/episode_benchmark.png"))
     args = parser.parse_args(argv)
     try:
         if args.runs < 1:
@@ -175,24 +224,11 @@ def main(argv=None) -> int:
     walls = [r.wall_s for r in results]
     builds = [r.build_s for r in results]
     sim = results[0].sim_time_s
-    # One more run under the profiler, to split the simulation's time.
-    profiler = cProfile.Profile()
-    profiler.enable()
-    t0 = time.perf_counter()
-    profiled = run_episode(scenario, obj, ik=ik, X_WG=plan.X_WG,
-                           catch_parameters=params)
-    profiled_wall = time.perf_counter() - t0
-    profiler.disable()
-    stats = pstats.Stats(profiler).stats
-    python = {}
-    for name, (file, func) in _PYTHON_SYSTEMS.items():
-        python[name] = round(sum(
-            tt for (f, _, fn), (_, _, tt, _, _) in stats.items()
-            if f.endswith(file) and (func is None or fn == func)), 4)
-    # Cumulative time of the sensors includes the geometry queries they make.
-    python["infrared sensors"] = round(sum(
-        ct for (f, _, fn), (_, _, _, ct, _) in stats.items()
-        if f.endswith("sensors.py") and fn == "read_levels"), 4)
+    # One more run with our Python callbacks timed.
+    with CallbackTimer() as timer:
+        timed = run_episode(scenario, obj, ik=ik, X_WG=plan.X_WG,
+                            catch_parameters=params)
+    python = timer.report()
     report = {
         "object": obj.name, "outcome": results[0].outcome,
         "runs": args.runs, "sim_time_s": round(sim, 4),
@@ -201,9 +237,11 @@ def main(argv=None) -> int:
         "real_time_factor": round(sim / statistics.median(walls), 3),
         "simulation_only_real_time_factor": round(
             sim / (statistics.median(walls) - statistics.median(builds)), 3),
-        "profiled_wall_s": round(profiled_wall, 4),
-        "python_systems_s (profiled run)": python,
-        "outcomes_identical": len({r.outcome for r in results + [profiled]}) == 1,
+        "timed_callbacks_run": {
+            "wall_s": round(timed.wall_s - timed.build_s, 4),
+            "python_callbacks": python,
+            "python_s": round(sum(v["s"] for v in python.values()), 4)},
+        "outcomes_identical": len({r.outcome for r in results + [timed]}) == 1,
     }
     # The physics alone, replayed (see replayed_physics_wall_s): over the
     # whole episode, and from the trigger (the first sample in LOWER, less
@@ -228,6 +266,10 @@ def main(argv=None) -> int:
             scenario, obj, X_WO, u_arm, u_hand, t_fork, x_fork, x_end))
         tail.append(episode_from_wall_s(
             scenario, obj, ik, plan.X_WG, params, t_fork))
+    with CallbackTimer() as timer:
+        tail_timed = episode_from_wall_s(scenario, obj, ik, plan.X_WG, params,
+                                         t_fork, timer)
+    python_tail = timer.report()
     episode_sim_wall = statistics.median(walls) - statistics.median(builds)
     physics = statistics.median(w for w, _ in replay)
     physics_tail = statistics.median(w for w, _ in replay_tail)
@@ -243,12 +285,72 @@ def main(argv=None) -> int:
             "fork_time_s": t_fork, "sim_time_s": round(sim - t_fork, 4),
             "episode_wall_s": round(statistics.median(tail), 4),
             "physics_wall_s": round(physics_tail, 4),
-            "physics_share": round(physics_tail / statistics.median(tail), 3)},
+            "physics_share": round(physics_tail / statistics.median(tail), 3),
+            "timed_callbacks_run": {
+                "wall_s": round(tail_timed, 4),
+                "python_callbacks": python_tail,
+                "python_s": round(sum(v["s"] for v in python_tail.values()),
+                                  4)}},
     }
     print(json.dumps(report, indent=1))
     args.json.parent.mkdir(parents=True, exist_ok=True)
     args.json.write_text(json.dumps(report, indent=1) + "\n")
+    plot_shares(report, args.png)
     return 0
+
+
+def shares(report) -> dict:
+    """Per part (whole episode, forked cell): the shares of its simulation's
+    wall time taken by the physics alone, our Python callbacks and the rest
+    (the arm controller, Drake's events and caches)."""
+    replayed = report["physics_replayed"]
+    whole_wall = report["median_wall_s"] - report["median_build_s"]
+    parts = {
+        f"whole episode ({report['sim_time_s']:g} s simulated)": (
+            replayed["whole_episode"]["physics_wall_s"] / whole_wall,
+            report["timed_callbacks_run"]["python_s"]
+            / report["timed_callbacks_run"]["wall_s"]),
+        f"forked cell ({replayed['from_fork']['sim_time_s']:g} s simulated)": (
+            replayed["from_fork"]["physics_share"],
+            replayed["from_fork"]["timed_callbacks_run"]["python_s"]
+            / replayed["from_fork"]["timed_callbacks_run"]["wall_s"]),
+    }
+    return {name: {"physics": p, "python": q, "rest": 1.0 - p - q}
+            for name, (p, q) in parts.items()}
+
+
+def plot_shares(report, path: Path) -> None:
+    """A PNG: one stacked bar per part (see shares)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    parts = shares(report)
+    fig, ax = plt.subplots(figsize=(8, 3.2))
+    colours = {"physics": "#4c72b0", "python": "#dd8452", "rest": "#bbbbbb"}
+    labels = {"physics": "physics alone (replayed bit for bit)",
+              "python": "our Python callbacks",
+              "rest": "the rest (arm controller, Drake's events, caches)"}
+    for i, (name, share) in enumerate(parts.items()):
+        left = 0.0
+        for key in ("physics", "python", "rest"):
+            ax.barh(i, share[key], left=left, color=colours[key],
+                    label=labels[key] if i == 0 else None)
+            ax.text(left + share[key] / 2, i, f"{100 * share[key]:.0f} %",
+                    ha="center", va="center", fontsize=9)
+            left += share[key]
+    ax.set_yticks(range(len(parts)))
+    ax.set_yticklabels(list(parts), fontsize=8)
+    ax.invert_yaxis()
+    ax.set_xlim(0, 1)
+    ax.set_xlabel("share of the simulation's wall time")
+    ax.set_title(f"{report['object']}: where an episode's time goes "
+                 f"({report['real_time_factor']:g}x real time)", fontsize=9)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.3),
+              ncol=2, frameon=False)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 if __name__ == "__main__":

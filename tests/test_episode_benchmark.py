@@ -57,6 +57,25 @@ class ReplayTest(Row2Fixture, unittest.TestCase):
             self.t_fork, self.x_fork, self.x_end)
         self.assertFalse(same)
 
+    def test_callback_timer_counts_the_tail_and_restores(self):
+        """Timed from the fork, the state machine runs once a plant step and
+        the sensors once a sample; afterwards the callbacks are the
+        originals again."""
+        from regrasp_drake.station.catch_state_machine import CatchStateMachine
+        original = CatchStateMachine._update
+        with episode_benchmark.CallbackTimer() as timer:
+            episode_benchmark.episode_from_wall_s(
+                self.scenario, self.obj, self.ik, self.plan.X_WG,
+                self.params, self.t_fork, timer)
+        self.assertIs(CatchStateMachine._update, original)
+        dt, period = self.scenario.time_step_s, self.scenario.sensors.period_s
+        tail_s = self.episode.sim_time_s - self.t_fork
+        self.assertEqual(timer.calls["catch state machine"],
+                         round(tail_s / dt) + 1)
+        self.assertEqual(timer.calls["infrared sensors"],
+                         round(tail_s / period) + 1)
+        self.assertGreater(timer.seconds["infrared sensors"], 0.0)
+
 
 class BadInputTest(RefusalAssertions, unittest.TestCase):
     main = staticmethod(episode_benchmark.main)
