@@ -89,11 +89,11 @@ class CallbackTimer:
                 for name in self.seconds}
 
 
-def record_plant_inputs(scenario, obj, ik, X_WG, params, t_split):
+def record_plant_inputs(scenario, obj, ik, X_WG, params):
     """Runs the episode step by step to its end and returns what its plant
-    was given: the arm's actuation and the fingers' desired state at every
-    plant step (each a (steps, n) array), the plant's state at t_split
-    (None past the end) and at the end, and the object's final position (to
+    was given and where it was: the arm's actuation, the fingers' desired
+    state and the plant's state before every plant step (each a (steps, n)
+    array), the plant's final state, and the object's final position (to
     compare with the episode's: stepping this way changes nothing). An input
     port evaluated between steps gives the value the plant's next step
     reads."""
@@ -104,17 +104,14 @@ def record_plant_inputs(scenario, obj, ik, X_WG, params, t_split):
     plant = station.plant
     context = plant.GetMyContextFromRoot(simulator.get_context())
     dt = scenario.time_step_s
-    k_split = round(t_split / dt)
-    x_split = None
-    u_arm, u_hand = [], []
+    u_arm, u_hand, x = [], [], []
     k = 0
     while True:
         if k:  # AdvanceTo(0) would already take the first step's updates
             status = simulator.AdvanceTo(k * dt)
             if status.reason() == status.ReturnReason.kReachedTerminationCondition:
                 break  # the monitor ended the episode in step k - 1
-        if k == k_split:
-            x_split = plant.GetPositionsAndVelocities(context).copy()
+        x.append(plant.GetPositionsAndVelocities(context).copy())
         u_arm.append(plant.get_actuation_input_port(station.arm).Eval(
             context).copy())
         u_hand.append(plant.get_desired_state_input_port(station.hand).Eval(
@@ -122,18 +119,18 @@ def record_plant_inputs(scenario, obj, ik, X_WG, params, t_split):
         k += 1
     p_WO = plant.EvalBodyPoseInWorld(
         context, station.object_body).translation().tolist()
-    return (np.array(u_arm), np.array(u_hand), x_split,
+    return (np.array(u_arm), np.array(u_hand), np.array(x),
             plant.GetPositionsAndVelocities(context).copy(), p_WO)
 
 
-def replayed_physics_wall_s(scenario, obj, X_WO_initial, u_arm, u_hand,
-                            t_start, x_start, x_end):
-    """Wall time of the episode's physics alone from t_start: the same plant
-    (add_world), fed the recorded inputs by zero-order holds (Drake's
-    TrajectorySource, in C++), with no controller, sensor, state machine or
-    monitor. Returns (wall s, whether the plant's final state equals the
-    episode's bit for bit): equal, it is the same physics, contact for
-    contact."""
+def replayed_physics_wall_s(scenario, obj, u_arm, u_hand, k_start, x_start,
+                            x_end):
+    """Wall time of the episode's physics alone from plant step k_start, in
+    state x_start: the same plant (add_world), fed the recorded inputs by
+    zero-order holds (Drake's TrajectorySource, in C++), with no controller,
+    sensor, state machine or monitor. Returns (wall s, whether the plant's
+    final state equals x_end, the episode's, bit for bit): equal, it is the
+    same physics, contact for contact."""
     import numpy as np
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import DiagramBuilder
@@ -141,7 +138,6 @@ def replayed_physics_wall_s(scenario, obj, X_WO_initial, u_arm, u_hand,
     from pydrake.trajectories import PiecewisePolynomial
 
     from regrasp_drake.station.station import add_world
-    from regrasp_drake.world import robot
     dt = scenario.time_step_s
     steps = len(u_arm)
     # Step k's input holds on [(k - 1/2) dt, (k + 1/2) dt).
@@ -153,22 +149,16 @@ def replayed_physics_wall_s(scenario, obj, X_WO_initial, u_arm, u_hand,
             breaks, np.hstack([v, v[:, -1:]])))
 
     builder = DiagramBuilder()
-    plant, _, instances, body, _ = add_world(builder, scenario, obj)
+    plant, _, instances, _, _ = add_world(builder, scenario, obj)
     builder.Connect(builder.AddSystem(hold(u_arm)).get_output_port(),
                     plant.get_actuation_input_port(instances.arm))
     builder.Connect(builder.AddSystem(hold(u_hand)).get_output_port(),
                     plant.get_desired_state_input_port(instances.hand))
     simulator = Simulator(builder.Build())
     root = simulator.get_mutable_context()
+    root.SetTime(k_start * dt)
     context = plant.GetMyMutableContextFromRoot(root)
-    if x_start is None:
-        plant.SetPositions(context, instances.arm,
-                           np.array(scenario.throw.knot_q_rad[0], float))
-        plant.SetPositions(context, instances.hand, robot.HAND_OPEN)
-        plant.SetFreeBodyPose(context, body, X_WO_initial)
-    else:
-        root.SetTime(t_start)
-        plant.SetPositionsAndVelocities(context, x_start)
+    plant.SetPositionsAndVelocities(context, x_start)
     simulator.Initialize()
     t0 = time.perf_counter()
     simulator.AdvanceTo(steps * dt)
@@ -254,16 +244,15 @@ def main(argv=None) -> int:
               "whose episode reaches the catch", file=sys.stderr)
         return 2
     t_fork = round(lower[0] - scenario.sensors.period_s, 6)
-    u_arm, u_hand, x_fork, x_end, p_WO_end = record_plant_inputs(
-        scenario, obj, ik, plan.X_WG, params, t_fork)
-    X_WO = build_station(scenario, obj, ik=ik, X_WG=plan.X_WG,
-                         catch_parameters=params).X_WO_initial
+    u_arm, u_hand, x, x_end, p_WO_end = record_plant_inputs(
+        scenario, obj, ik, plan.X_WG, params)
+    k_fork = round(t_fork / scenario.time_step_s)
     replay, replay_tail, tail = [], [], []
     for _ in range(args.runs):
         replay.append(replayed_physics_wall_s(
-            scenario, obj, X_WO, u_arm, u_hand, 0.0, None, x_end))
+            scenario, obj, u_arm, u_hand, 0, x[0], x_end))
         replay_tail.append(replayed_physics_wall_s(
-            scenario, obj, X_WO, u_arm, u_hand, t_fork, x_fork, x_end))
+            scenario, obj, u_arm, u_hand, k_fork, x[k_fork], x_end))
         tail.append(episode_from_wall_s(
             scenario, obj, ik, plan.X_WG, params, t_fork))
     with CallbackTimer() as timer:

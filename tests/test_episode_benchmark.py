@@ -5,7 +5,6 @@ import unittest
 
 from regrasp_drake.grid import plan_object
 from regrasp_drake.station.episode import run_episode
-from regrasp_drake.station.station import build_station
 from tests.fixtures import Row2Fixture
 from tests.refusals import RefusalAssertions, load_benchmark
 
@@ -22,13 +21,10 @@ class ReplayTest(Row2Fixture, unittest.TestCase):
                                   X_WG=cls.plan.X_WG,
                                   catch_parameters=cls.params)
         cls.t_fork = 1.268
-        (cls.u_arm, cls.u_hand, cls.x_fork, cls.x_end,
+        (cls.u_arm, cls.u_hand, cls.x, cls.x_end,
          cls.p_WO_end) = episode_benchmark.record_plant_inputs(
-            cls.scenario, cls.obj, cls.ik, cls.plan.X_WG, cls.params,
-            cls.t_fork)
-        cls.X_WO = build_station(cls.scenario, cls.obj, ik=cls.ik,
-                                 X_WG=cls.plan.X_WG,
-                                 catch_parameters=cls.params).X_WO_initial
+            cls.scenario, cls.obj, cls.ik, cls.plan.X_WG, cls.params)
+        cls.k_fork = round(cls.t_fork / cls.scenario.time_step_s)
 
     def test_recording_run_is_the_episode(self):
         """Stepping the episode to read the plant's inputs changes nothing:
@@ -39,22 +35,21 @@ class ReplayTest(Row2Fixture, unittest.TestCase):
         self.assertEqual(len(self.u_arm), steps + 1)
 
     def test_replay_ends_in_the_episodes_state(self):
-        for t_start, x_start in ((0.0, None), (self.t_fork, self.x_fork)):
+        for k_start in (0, self.k_fork):
             wall, same = episode_benchmark.replayed_physics_wall_s(
-                self.scenario, self.obj, self.X_WO, self.u_arm, self.u_hand,
-                t_start, x_start, self.x_end)
-            self.assertTrue(same, t_start)
+                self.scenario, self.obj, self.u_arm, self.u_hand, k_start,
+                self.x[k_start], self.x_end)
+            self.assertTrue(same, k_start)
             self.assertGreater(wall, 0.0)
 
     def test_replay_with_other_inputs_ends_elsewhere(self):
         """The check is not vacuous: one arm torque 1e-9 N·m off, one step
         after the fork, and the final state differs."""
         u_arm = self.u_arm.copy()
-        k = round(self.t_fork / self.scenario.time_step_s) + 1
-        u_arm[k, 1] += 1e-9
+        u_arm[self.k_fork + 1, 1] += 1e-9
         _, same = episode_benchmark.replayed_physics_wall_s(
-            self.scenario, self.obj, self.X_WO, u_arm, self.u_hand,
-            self.t_fork, self.x_fork, self.x_end)
+            self.scenario, self.obj, u_arm, self.u_hand, self.k_fork,
+            self.x[self.k_fork], self.x_end)
         self.assertFalse(same)
 
     def test_callback_timer_counts_the_tail_and_restores(self):
