@@ -86,23 +86,9 @@ def train(data_dir: Path, out: Path, *, seed: int = 0, epochs: int = 3000,
         pred = (model(xt[split]) - model.output_mean) / model.output_std
         return torch.mean((pred - yt[split]) ** 2)
 
-    optimizer = torch.optim.Adam(model.parameters(), lr=learning_rate)
-    curve = {"train": [], "val": []}
-    best = (float("inf"), 0, None)
-    for epoch in range(epochs):
-        optimizer.zero_grad()
-        training_loss = loss("train")
-        training_loss.backward()
-        optimizer.step()
-        with torch.no_grad():
-            validation_loss = float(loss("val"))
-        curve["train"].append(float(training_loss.detach()))
-        curve["val"].append(validation_loss)
-        if validation_loss < best[0]:
-            best = (validation_loss, epoch,
-                    {k: v.clone() for k, v in model.state_dict().items()})
-    model.load_state_dict(best[2])
-    model.eval()
+    best_epoch, best_score, curve = fit(
+        model, lambda: loss("train"), lambda: -float(loss("val")),
+        epochs=epochs, learning_rate=learning_rate)
 
     report = evaluate(model, samples, data_dir, train_i, test_i)
     report |= {
@@ -110,15 +96,15 @@ def train(data_dir: Path, out: Path, *, seed: int = 0, epochs: int = 3000,
         "split": {"train": [samples[i]["object"] for i in train_i],
                   "validation": [samples[i]["object"] for i in val_i],
                   "test": [samples[i]["object"] for i in test_i]},
-        "seed": seed, "epochs": epochs, "best_epoch": best[1],
-        "best_validation_loss": best[0],
+        "seed": seed, "epochs": epochs, "best_epoch": best_epoch,
+        "best_validation_loss": -best_score,
         "final_training_loss": curve["train"][-1],
     }
     provenance = json.loads((data_dir / "provenance.json").read_text()) \
         if (data_dir / "provenance.json").exists() else {}
     metadata = {
         "features": list(FEATURE_NAMES), "outputs": ["h_catch", "h_down"],
-        "hidden": 13, "seed": seed, "epochs": epochs, "best_epoch": best[1],
+        "hidden": 13, "seed": seed, "epochs": epochs, "best_epoch": best_epoch,
         "data": {"samples": len(samples),
                  "code_version": provenance.get("code_version"),
                  "catalogue_sha256": provenance.get("catalogue_sha256")},
@@ -128,8 +114,34 @@ def train(data_dir: Path, out: Path, *, seed: int = 0, epochs: int = 3000,
     save_weights(out, model, metadata)
     out.with_suffix(".json").write_text(json.dumps(report, indent=1) + "\n")
     if curve_png is not None:
-        _plot_curve(curve, best[1], curve_png)
+        _plot_curve(curve, best_epoch, curve_png)
     return report
+
+
+def fit(model, training_loss, validation_score, *, epochs: int,
+        learning_rate: float):
+    """Full-batch Adam on training_loss() for `epochs` epochs; the model
+    keeps the weights of the epoch with the highest validation_score().
+    Returns that epoch, its score and the curves of both (the score's
+    negative, so that a loss reads as a loss)."""
+    optimizer = torch.optim.Adam(model.parameters(), lr=learning_rate)
+    curve = {"train": [], "val": []}
+    best = (-float("inf"), 0, None)
+    for epoch in range(epochs):
+        optimizer.zero_grad()
+        loss = training_loss()
+        loss.backward()
+        optimizer.step()
+        with torch.no_grad():
+            score = validation_score()
+        curve["train"].append(float(loss.detach()))
+        curve["val"].append(-score)
+        if score > best[0]:
+            best = (score, epoch,
+                    {k: v.clone() for k, v in model.state_dict().items()})
+    model.load_state_dict(best[2])
+    model.eval()
+    return best[1], best[0], curve
 
 
 def repeated_splits(data_dir: Path, seeds, *, epochs: int = 3000,
