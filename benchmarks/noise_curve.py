@@ -1,20 +1,21 @@
 """Catch rate against release noise, for watch-then-catch and first-throw.
 
     .venv/bin/python benchmarks/noise_curve.py [--objects table1-row1 …]
-        [--levels 0 1 2 3 4] [--trials 4] [--workers 2]
-        [--library regrasp_library.yaml]
-        [--first-throw-library regrasp_library_first_throw.yaml]
-        [--at-release-library regrasp_library_at_release.yaml]
+        [--levels 0 0.25 0.5 1 2 4] [--trials 12] [--workers 2]
+        [--library models/results/library_table1.yaml]
+        [--first-throw-library models/results/library_table1_ft.yaml]
+        [--at-release-library models/results/library_table1_ar.yaml]
         [--out benchmarks/noise_curve]
 
-Noise level k perturbs every throw (scenario throw.noise): the release time
-with a standard deviation of k × 2 ms and each arm joint's velocity at the
-release with k × 0.03 rad/s, seeded by (trial, throw number), so every figure
-is reproducible.
+Noise level k (a number ≥ 0) perturbs every throw (scenario throw.noise):
+the release time with a standard deviation of k × 2 ms and each arm joint's
+velocity at the release with k × 0.03 rad/s, seeded by (trial, throw
+number), so every figure is reproducible.
 
 Each object's parameters are the ones its learning phase found without
-noise (the regrasp library files that `regrasp-drake table1` and
-`regrasp-drake table1 --first-throw --library …` write). A trial:
+noise (the regrasp library files that `regrasp-drake table1 --library …`,
+with `--first-throw` and with `--at-release`, write; those of the shipped
+network are in models/results/library_*.yaml). A trial:
   watch-then-catch: a noisy watching throw, the catch planned from it, then
       a noisy catching throw (a different perturbation) with those
       parameters;
@@ -25,7 +26,8 @@ noise (the regrasp library files that `regrasp-drake table1` and
       planned when it releases the object, from the object's state seen
       then (`learn --at-release`), with the parameters that mode learned.
 Writes <out>.jsonl (one line per trial, as it finishes; a rerun resumes),
-<out>.json (catch rate per mode and level) and <out>.png (the curves).
+<out>.json (catch rate per mode and level, with its 95 % Wilson interval)
+and <out>.png (the curves, the intervals as bars).
 """
 
 # regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
@@ -34,12 +36,25 @@ import regrasp_drake  # noqa: F401, I001 (first, see above)
 import argparse
 import dataclasses as dc
 import json
+import math
 import sys
 import time
 from pathlib import Path
 
 RELEASE_STD_PER_LEVEL_S = 0.002
 JOINT_DV_STD_PER_LEVEL = 0.03  # rad/s
+RESULTS = Path(__file__).parents[1] / "models" / "results"
+
+
+def wilson_interval(caught: int, trials: int, z: float = 1.96):
+    """The 95 % Wilson score interval of a catch rate, (low, high)."""
+    if trials == 0:
+        return None
+    p = caught / trials
+    centre = (p + z * z / (2 * trials)) / (1 + z * z / trials)
+    half = (z / (1 + z * z / trials)) * math.sqrt(
+        p * (1 - p) / trials + z * z / (4 * trials * trials))
+    return max(0.0, centre - half), min(1.0, centre + half)
 
 
 def _scenario(level, trial):
@@ -99,22 +114,32 @@ def _trial(task):
     return row
 
 
-def main() -> int:
+def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--objects", nargs="+", default=[
         f"table1-row{k}" for k in range(1, 6)])
-    parser.add_argument("--levels", nargs="+", type=int, default=[0, 1, 2, 3, 4])
-    parser.add_argument("--trials", type=int, default=4)
+    parser.add_argument("--levels", nargs="+", type=float,
+                        default=[0, 0.25, 0.5, 1, 2, 4])
+    parser.add_argument("--trials", type=int, default=12)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--library", type=Path,
-                        default=Path("regrasp_library.yaml"))
+                        default=RESULTS / "library_table1.yaml")
     parser.add_argument("--first-throw-library", type=Path,
-                        default=Path("regrasp_library_first_throw.yaml"))
+                        default=RESULTS / "library_table1_ft.yaml")
     parser.add_argument("--at-release-library", type=Path,
-                        default=Path("regrasp_library_at_release.yaml"))
+                        default=RESULTS / "library_table1_ar.yaml")
     parser.add_argument("--out", type=Path,
                         default=Path("benchmarks/noise_curve"))
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
+    for flag, value, ok, expected in (
+            ("--levels", min(args.levels), min(args.levels) >= 0,
+             "noise levels ≥ 0"),
+            ("--trials", args.trials, args.trials >= 1, "an integer ≥ 1"),
+            ("--workers", args.workers, args.workers >= 1, "an integer ≥ 1")):
+        if not ok:
+            print(f"noise_curve: error: {flag}: got {value}, expected "
+                  f"{expected}", file=sys.stderr)
+            return 2
     from regrasp_drake.learning.library import load_library
     libraries = {"watch": args.library, "first-throw": args.first_throw_library,
                  "at-release": args.at_release_library}
@@ -155,6 +180,7 @@ def main() -> int:
                     and k[2] == level and k[1] in args.objects
                     and k[1] in learned[mode] and k[3] < args.trials]
             caught = sum(r["outcome"] == "caught" for r in rows)
+            interval = wilson_interval(caught, len(rows))
             curves[mode].append({
                 "level": level,
                 "release_time_std_ms": level * RELEASE_STD_PER_LEVEL_S * 1e3,
@@ -163,7 +189,8 @@ def main() -> int:
                 "objects": len({k[1] for k in done if k[0] == mode
                                 and k[2] == level and k[1] in args.objects
                                 and k[1] in learned[mode]}),
-                "catch_rate": caught / len(rows) if rows else None})
+                "catch_rate": caught / len(rows) if rows else None,
+                "catch_rate_95": interval and [round(v, 3) for v in interval]})
     summary = {"objects": args.objects, "trials_per_object": args.trials,
                "curves": curves}
     args.out.with_suffix(".json").write_text(json.dumps(summary, indent=1) + "\n")
@@ -176,20 +203,26 @@ def _plot(curves, path):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(6, 4))
+    import numpy as np
+    fig, ax = plt.subplots(figsize=(7, 4.5))
     for mode, points in curves.items():
         if not any(p["trials"] for p in points):
             continue
+        points = [p for p in points if p["trials"]]
         objects = max(p["objects"] for p in points)
-        ax.plot([p["release_time_std_ms"] for p in points],
-                [p["catch_rate"] for p in points], "o-",
-                label=f"{mode} ({objects} objects)")
+        trials = max(p["trials"] for p in points)
+        rate = np.array([p["catch_rate"] for p in points])
+        low, high = np.array([p["catch_rate_95"] for p in points]).T
+        ax.errorbar([p["release_time_std_ms"] for p in points], rate,
+                    yerr=[rate - low, high - rate], fmt="o-", capsize=3,
+                    label=f"{mode} ({objects} objects, {trials} trials a level)")
     ax.set_xlabel("release time std (ms); joint velocity std = 15 × that "
                   "(mrad/s)", fontsize=8)
     ax.set_ylabel("catch rate")
     ax.set_ylim(-0.05, 1.05)
-    ax.set_title("Catch rate of the learned parameters under release noise")
-    ax.legend()
+    ax.set_title("Catch rate of the learned parameters under release noise\n"
+                 "(bars: 95 % Wilson intervals)", fontsize=10)
+    ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

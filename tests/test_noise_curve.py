@@ -1,0 +1,79 @@
+"""benchmarks/noise_curve.py: its catch-rate intervals, its refusals, and one
+noiseless trial per mode from the shipped libraries."""
+
+import contextlib
+import io
+import json
+import tempfile
+import unittest
+from pathlib import Path
+
+from tests.refusals import RefusalAssertions, load_benchmark
+
+noise_curve = load_benchmark("noise_curve")
+
+
+class WilsonIntervalTest(unittest.TestCase):
+    def test_known_values(self):
+        # 95 % Wilson intervals of 0/12, 12/12 and 6/12 (z = 1.96).
+        low, high = noise_curve.wilson_interval(0, 12)
+        self.assertEqual(low, 0.0)
+        self.assertAlmostEqual(high, 0.2425, places=4)
+        low, high = noise_curve.wilson_interval(12, 12)
+        self.assertAlmostEqual(low, 0.7575, places=4)
+        self.assertEqual(high, 1.0)
+        low, high = noise_curve.wilson_interval(6, 12)
+        self.assertAlmostEqual(low + high, 1.0, places=12)
+        self.assertAlmostEqual(low, 0.2538, places=4)
+        self.assertIsNone(noise_curve.wilson_interval(0, 0))
+
+    def test_more_trials_narrow_it(self):
+        few = noise_curve.wilson_interval(3, 6)
+        many = noise_curve.wilson_interval(30, 60)
+        self.assertLess(many[1] - many[0], few[1] - few[0])
+
+
+class NoiseCurveTest(RefusalAssertions, unittest.TestCase):
+    main = staticmethod(noise_curve.main)
+
+    def setUp(self):
+        self.tmp = tempfile.TemporaryDirectory()
+        self.out = Path(self.tmp.name) / "curve"
+
+    def tearDown(self):
+        self.tmp.cleanup()
+
+    def test_bad_arguments_refused(self):
+        out = ["--out", str(self.out)]
+        self.assertRefused(["--trials", "0", *out], "--trials", "got 0")
+        self.assertRefused(["--levels", "0", "-1", *out], "--levels", "got -1")
+        self.assertRefused(["--workers", "0", *out], "--workers", "got 0")
+        self.assertRefused(["--library", "/nonexistent.yaml", *out],
+                           "--library", "/nonexistent.yaml")
+        self.assertFalse(self.out.with_suffix(".jsonl").exists())
+
+    def test_noiseless_trials_catch_as_the_learning_phase_did(self):
+        # table1-row5 was caught in all three modes (models/results); the
+        # same parameters without noise catch again, one throw per mode
+        # (two when watching first).
+        with contextlib.redirect_stdout(io.StringIO()), \
+                contextlib.redirect_stderr(io.StringIO()):
+            code = self.main([
+                "--objects", "table1-row5", "--levels", "0", "--trials", "1",
+                "--workers", "1", "--out", str(self.out)])
+        self.assertEqual(code, 0)
+        rows = [json.loads(line) for line in
+                self.out.with_suffix(".jsonl").read_text().splitlines()]
+        self.assertEqual(sorted(r["mode"] for r in rows),
+                         ["at-release", "first-throw", "watch"])
+        self.assertEqual({r["outcome"] for r in rows}, {"caught"})
+        summary = json.loads(self.out.with_suffix(".json").read_text())
+        for mode in ("watch", "first-throw", "at-release"):
+            point = summary["curves"][mode][0]
+            self.assertEqual((point["trials"], point["caught"]), (1, 1))
+            self.assertEqual(point["catch_rate_95"][1], 1.0)
+        self.assertGreater(self.out.with_suffix(".png").stat().st_size, 10_000)
+
+
+if __name__ == "__main__":
+    unittest.main()
