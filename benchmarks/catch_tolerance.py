@@ -7,15 +7,17 @@ predictor's error.
 
 For each object: the watching throw and its plan (the palm's grasp pose
 X_WG); the object's learned cell (from the watch-first regrasp library that
-`regrasp-drake table1 --library F` writes; the first of the files given
-that has the object); then one catching throw per
-offset of the palm in its own plane (x across the object's axis, y along
-it; a square grid of --step-mm up to ±--reach-mm), everything else as
-learned. The object's catch tolerance is the largest radius r (on the grid)
-such that every offset within r catches: the error the hand absorbs, as the
-simulated sensors judge it. Beside it: the flight predictor's error for that
-object, the offset of the palm planned from the predicted flight from the
-palm planned from the watched one, in the same palm frame.
+`regrasp-drake table1 --library F` writes; the first of the files given that
+has the object; by default the shipped network's, in
+models/results/library_holdout.yaml and library_table1.yaml); then one
+catching throw per offset of the palm in its own plane (x across the
+object's axis, y along it; a square grid of --step-mm up to ±--reach-mm),
+everything else as learned. The object's catch tolerance is the largest
+radius r (on the grid) such that every offset within r catches: the error
+the hand absorbs, as the simulated sensors judge it. Beside it: the flight
+predictor's error for that object, the offset of the palm planned from the
+predicted flight from the palm planned from the watched one, in the same
+palm frame.
 
 Writes <out>.jsonl (one line per throw, as it finishes; a rerun resumes),
 <out>.json (per object: tolerance, predictor offset, inside or not) and
@@ -118,8 +120,10 @@ def tolerance_mm(rows) -> float | None:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--objects", nargs="+", default=_HELD_OUT)
+    results = Path(__file__).parents[1] / "models" / "results"
     parser.add_argument("--library", type=Path, nargs="+",
-                        default=[Path("regrasp_library.yaml")])
+                        default=[results / "library_holdout.yaml",
+                                 results / "library_table1.yaml"])
     parser.add_argument("--step-mm", type=int, default=10)
     parser.add_argument("--reach-mm", type=int, default=40)
     parser.add_argument("--workers", type=int, default=2)

@@ -205,15 +205,16 @@ def _plot(curves, path):
     import matplotlib.pyplot as plt
     import numpy as np
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    for mode, points in curves.items():
+    for k, (mode, points) in enumerate(curves.items()):
         if not any(p["trials"] for p in points):
             continue
+        shift = 0.06 * (k - 1)  # ms: the modes' bars side by side
         points = [p for p in points if p["trials"]]
         objects = max(p["objects"] for p in points)
         trials = max(p["trials"] for p in points)
         rate = np.array([p["catch_rate"] for p in points])
         low, high = np.array([p["catch_rate_95"] for p in points]).T
-        ax.errorbar([p["release_time_std_ms"] for p in points], rate,
+        ax.errorbar([p["release_time_std_ms"] + shift for p in points], rate,
                     yerr=[rate - low, high - rate], fmt="o-", capsize=3,
                     label=f"{mode} ({objects} objects, {trials} trials a level)")
     ax.set_xlabel("release time std (ms); joint velocity std = 15 × that "
