@@ -14,11 +14,14 @@ from regrasp_drake.errors import InputError
 
 
 def _add_object_args(p: argparse.ArgumentParser) -> None:
-    group = p.add_mutually_exclusive_group(required=True)
-    group.add_argument("--object", metavar="NAME",
-                       help="a catalogue object (see `regrasp-drake objects`)")
-    group.add_argument("--object-file", metavar="F", type=Path,
-                       help="a YAML object file in the catalogue's format")
+    """--object, --object-file or both (the object is then the named one of
+    the file); neither is refused when the object is resolved."""
+    p.add_argument("--object", metavar="NAME",
+                   help="a catalogue object (see `regrasp-drake objects`); "
+                        "with --object-file, the object of that name in F")
+    p.add_argument("--object-file", metavar="F", type=Path,
+                   help="a YAML object file in the catalogue's format (its "
+                        "first object unless --object names another)")
 
 
 def _add_scenario_arg(p: argparse.ArgumentParser) -> None:
@@ -474,6 +477,11 @@ def make_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     args = make_parser().parse_args(argv)
     try:
+        if (args.command != "objects" and "object_file" in vars(args)
+                and args.object is None and args.object_file is None):
+            raise InputError("--object, --object-file: got neither, expected "
+                             "a catalogue object's name, an object file, or "
+                             "both (the named object of the file)")
         return args.func(args)
     except InputError as e:
         print(f"regrasp-drake {args.command}: error: {e}", file=sys.stderr)

@@ -7,6 +7,8 @@ import tempfile
 import unittest
 from pathlib import Path
 
+EXAMPLE_OBJECTS = Path(__file__).parents[1] / "examples" / "my_object.yaml"
+
 
 def _run(*args):
     return subprocess.run([sys.executable, "-m", "regrasp_drake.cli", *args],
@@ -64,6 +66,38 @@ class TestCli(unittest.TestCase):
                 self.assertEqual(len(result.stderr.strip().splitlines()), 1,
                                  result.stderr)
                 self.assertIn("--at-release", result.stderr)
+
+    def test_object_missing_refused_naming_both_flags(self):
+        result = _run("learn")
+        self.assertEqual(result.returncode, 2)
+        self.assertEqual(len(result.stderr.strip().splitlines()), 1)
+        self.assertIn("--object, --object-file: got neither", result.stderr)
+
+
+class TestExampleObjects(unittest.TestCase):
+    """examples/my_object.yaml, the README's own-object example."""
+
+    def test_learn_catches_the_files_second_object_it_names(self):
+        # --object with --object-file: the named object of the file. The
+        # README says the example spatula is caught on the first catching
+        # throw (2 throws with the watch).
+        with tempfile.TemporaryDirectory() as d:
+            out, library = Path(d) / "learn.json", Path(d) / "library.yaml"
+            result = _run("learn", "--object-file", str(EXAMPLE_OBJECTS),
+                          "--object", "spatula-d250", "--library", str(library),
+                          "--max-throws", "4", "--json", str(out))
+            self.assertEqual(result.returncode, 0, result.stderr)
+            report = json.loads(out.read_text())
+            self.assertIn("spatula-d250", library.read_text())
+        self.assertEqual(report["object"], "spatula-d250")
+        self.assertTrue(report["caught"])
+        self.assertEqual(report["throws"], 2)
+
+    def test_every_example_object_is_valid(self):
+        result = _run("objects", "--json", "--object-file", str(EXAMPLE_OBJECTS))
+        self.assertEqual(result.returncode, 0, result.stderr)
+        self.assertEqual([r["name"] for r in json.loads(result.stdout)],
+                         ["screwdriver-d300", "spatula-d250"])
 
 
 if __name__ == "__main__":
