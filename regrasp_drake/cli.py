@@ -177,9 +177,15 @@ def _add_search_arg(p: argparse.ArgumentParser) -> None:
 
 
 def _check_first_throw_args(args) -> None:
+    """The first-throw flags and --max-throws of `learn` and `table1`."""
     if args.first_throw and args.at_release:
         raise InputError("--at-release: got it with --first-throw, expected "
                          "one of the two first-throw modes")
+    least = 1 if args.first_throw or args.at_release else 2
+    if args.max_throws is not None and args.max_throws < least:
+        raise InputError(f"--max-throws: got {args.max_throws}, expected an "
+                         f"integer >= {least} (the watch, if any, and one "
+                         "catch attempt)")
 
 
 def _replay(path):
@@ -296,11 +302,6 @@ def _cmd_table1(args) -> int:
     from regrasp_drake.station.scenario import load_scenario
     torch.set_num_threads(1)
     _check_first_throw_args(args)
-    least = 1 if args.first_throw or args.at_release else 2
-    if args.max_throws is not None and args.max_throws < least:
-        raise InputError(f"--max-throws: got {args.max_throws}, expected an "
-                         f"integer >= {least} (the watch, if any, and one "
-                         "catch attempt)")
     scenario = load_scenario(args.scenario)
     model = _load_network(args, scenario)
     rows = run_table1(scenario, model, ik=ArmIk(), library_path=args.library,

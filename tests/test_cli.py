@@ -67,6 +67,16 @@ class TestCli(unittest.TestCase):
                                  result.stderr)
                 self.assertIn("--at-release", result.stderr)
 
+    def test_too_few_throws_refused_naming_the_flag(self):
+        for command, args in (("learn", ["--object", "table1-row2"]),
+                              ("table1", ["--no-maps"])):
+            result = _run(command, *args, "--max-throws", "1")
+            with self.subTest(command=command):
+                self.assertEqual(result.returncode, 2)
+                self.assertEqual(len(result.stderr.strip().splitlines()), 1)
+                self.assertIn("--max-throws: got 1, expected an integer >= 2",
+                              result.stderr)
+
     def test_object_missing_refused_naming_both_flags(self):
         result = _run("learn")
         self.assertEqual(result.returncode, 2)
