@@ -77,6 +77,27 @@ class TestCli(unittest.TestCase):
                 self.assertIn("--max-throws: got 1, expected an integer >= 2",
                               result.stderr)
 
+    def test_object_the_hand_cannot_hold_refused_with_the_reason(self):
+        # A 0.4 m wide, 20 kg cylinder: valid as an object, but the watching
+        # throw ends before the release with it near the ground.
+        with tempfile.TemporaryDirectory() as d:
+            path = Path(d) / "big.yaml"
+            path.write_text("geometries:\n  g:\n    pieces:\n      - {shape: "
+                            "cylinder, radius: 0.2, length: 0.8, axis: y, "
+                            "center: [0, 0, 0], grasp: true}\nobjects:\n  - "
+                            "{name: big, set: holdout, geometry: g, density: "
+                            "200, h_cm: 0, r_cm: 0}\n")
+            result = _run("learn", "--object-file", str(path), "--library",
+                          str(Path(d) / "library.yaml"))
+        self.assertEqual(result.returncode, 2)
+        # The watching throw's progress line, then the error.
+        lines = result.stderr.strip().splitlines()
+        self.assertEqual(len(lines), 2, result.stderr)
+        self.assertIn("throw 1 (watch): landed", lines[0])
+        self.assertIn("learn: error: object big: no catch point: the watching "
+                      "throw ended", lines[1])
+        self.assertIn("before the release at 0.610 s", lines[1])
+
     def test_object_missing_refused_naming_both_flags(self):
         result = _run("learn")
         self.assertEqual(result.returncode, 2)

@@ -8,6 +8,7 @@ the grasp monitor; loggers; Meshcat when asked.
 """
 
 import dataclasses as dc
+import logging
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -46,6 +47,21 @@ from regrasp_drake.world import robot
 from regrasp_drake.world.objects import ObjectSpec, add_object
 
 _IR_FRAMES = [f"ir{i}" for i in range(1, 14)]
+
+
+class _NoDeformableGroundWarning(logging.Filter):
+    """Drake (1.51) warns, each time the ground's half space is registered
+    for contact, that a rigid half space takes no part in deformable
+    contact. Nothing here is deformable: the warning only hides the lines
+    that matter (a one-line error)."""
+
+    def filter(self, record) -> bool:
+        return not record.getMessage().startswith(
+            "Rigid (non-deformable) half spaces are not currently supported "
+            "for deformable contact")
+
+
+logging.getLogger("drake").addFilter(_NoDeformableGroundWarning())
 # The tactile bumper stands this proud of the palm (paper: 3 x 6 x 0.1 cm).
 _BUMPER_THICKNESS_M = 0.001
 
