@@ -15,7 +15,7 @@ from regrasp_drake.errors import InputError
 
 def _add_object_args(p: argparse.ArgumentParser) -> None:
     """--object, --object-file or both (the object is then the named one of
-    the file); neither is refused when the object is resolved."""
+    the file); main() refuses neither."""
     p.add_argument("--object", metavar="NAME",
                    help="a catalogue object (see `regrasp-drake objects`); "
                         "with --object-file, the object of that name in F")

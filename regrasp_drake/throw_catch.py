@@ -108,18 +108,21 @@ def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     t_ready = (scenario.throw.settle_s + scenario.throw.knot_times_s[-1]
                + c.move_to_grasp_s)
     q_start = np.asarray(scenario.throw.knot_q_rad[-1], float)
+    # A flight that ends before the release (a watching throw stopped with
+    # the object near the ground) says why there is no catch point.
+    t_release = scenario.throw.settle_s + scenario.throw.release_time_s
+    if (getattr(watched, "outcome", None) == "landed"
+            and watched.logs.t[-1] < t_release):
+        raise InputError(
+            f"object {obj.name}: no catch point: the watching throw ended at "
+            f"t = {watched.logs.t[-1]:.3f} s, before the release at "
+            f"{t_release:.3f} s, with the object near the ground (within "
+            "monitor.ground_clearance_m of it, counting the object's size), "
+            "expected an object the hand holds up until the fingers open")
     points = catch_moments(watched.logs.t, watched.logs.object_state, obj,
                            height_m=c.catch_height_m, band_m=c.height_band_m,
                            ready_s=t_ready, fall_m=H_CATCH_RANGE[1],
                            tilt_tolerance=c.tilt_tolerance)
-    t_release = scenario.throw.settle_s + scenario.throw.release_time_s
-    if watched.outcome == "landed" and watched.sim_time_s < t_release:
-        raise InputError(
-            f"object {obj.name}: no catch point: the watching throw ended at "
-            f"t = {watched.sim_time_s:.3f} s, before the release at "
-            f"{t_release:.3f} s, with the object near the ground (within "
-            "monitor.ground_clearance_m of it, counting the object's size), "
-            "expected an object the hand holds up until the fingers open")
     if not points:
         raise InputError(
             f"object {obj.name}: no catch point (the watched flight never "

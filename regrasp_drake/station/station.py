@@ -48,6 +48,9 @@ from regrasp_drake.world.objects import ObjectSpec, add_object
 
 _IR_FRAMES = [f"ir{i}" for i in range(1, 14)]
 
+# The tactile bumper stands this proud of the palm (paper: 3 x 6 x 0.1 cm).
+_BUMPER_THICKNESS_M = 0.001
+
 
 class _NoDeformableGroundWarning(logging.Filter):
     """Drake (1.51) warns, each time the ground's half space is registered
@@ -62,8 +65,6 @@ class _NoDeformableGroundWarning(logging.Filter):
 
 
 logging.getLogger("drake").addFilter(_NoDeformableGroundWarning())
-# The tactile bumper stands this proud of the palm (paper: 3 x 6 x 0.1 cm).
-_BUMPER_THICKNESS_M = 0.001
 
 
 class GraspPoseSource(LeafSystem):
