@@ -195,6 +195,7 @@ def main(argv=None) -> int:
                    default=Path(__file__).with_name("network_alternatives"),
                    metavar="PATH", help="writes PATH.json and PATH.png")
     args = p.parse_args(argv)
+    torch.set_num_threads(1)  # as `regrasp-drake train`: the same bits anywhere
     try:
         for flag, value in (("--seeds", args.seeds), ("--epochs", args.epochs)):
             if value < 1:
