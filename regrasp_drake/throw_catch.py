@@ -98,6 +98,16 @@ def plan_catch(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     return plan_catches(scenario, obj, ik, watched, count=1)[0]
 
 
+def catch_palm_poses(scenario: Scenario, point, obj: ObjectSpec):
+    """The palm's poses under a catch point (`palm_poses_for`, preferred
+    side first) with the scenario's catch settings."""
+    c = scenario.catch
+    return palm_poses_for(
+        point, obj.grasp_radius, obj=obj, com_margin_m=c.palm_com_margin_m,
+        max_palm_tilt_rad=float(np.arcsin(c.tilt_tolerance)),
+        across_com_fraction=c.palm_across_com_fraction)
+
+
 def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
                  watched: EpisodeResult, *, count: int,
                  min_separation_s: float = 0.0) -> list[CatchPlan]:
@@ -134,10 +144,8 @@ def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
         if any(abs(point.t_s - p.catch_point.t_s) < max(min_separation_s, 1e-9)
                for p in plans):
             continue
-        for side, X_WG in zip(("paper", "mirrored"), palm_poses_for(
-                point, obj.grasp_radius, obj=obj,
-                com_margin_m=c.palm_com_margin_m,
-                max_palm_tilt_rad=float(np.arcsin(c.tilt_tolerance)))):
+        for side, X_WG in zip(("paper", "mirrored"),
+                              catch_palm_poses(scenario, point, obj)):
             result = ik.solve(X_WG, c.ik_seed_q_rad)
             where = f"at t = {point.t_s:.3f} s, {side} side"
             if not result.success:

@@ -167,6 +167,29 @@ class TestPalmPose(unittest.TestCase):
                 self.assertTrue(a.IsExactlyEqualTo(b))
 
 
+    def test_palm_across_the_axis_between_grasp_piece_and_com(self):
+        # table1-row4: centre of mass 43 mm off the grasp piece's axis
+        # (r_cm). Across the axis (the fingertip direction x), the palm's
+        # centre sits at the fraction of the way from that axis to it.
+        obj = load_catalogue()["table1-row4"]
+        c = CatchPoint(t_s=1.0, p_WO=np.array([0.8, -0.1, 0.7]),
+                       y_W=np.array([0.0, 1.0, 0.0]), v_catch=-3.0, tilt=0.0,
+                       R_WO=np.eye(3))
+        p_OCm = np.array(obj.p_OCm)
+        self.assertAlmostEqual(abs(p_OCm[0]), 0.043, places=6)
+        for fraction in (1.0, 0.5, 0.0):
+            with self.subTest(fraction=fraction):
+                X_WP = palm_poses_for(c, obj.grasp_radius, obj=obj,
+                                      across_com_fraction=fraction)[0]
+                across = X_WP.translation()[0] - c.p_WO[0]
+                self.assertAlmostEqual(across, fraction * p_OCm[0], places=12)
+        # The default is the fraction 1, bit for bit.
+        np.testing.assert_array_equal(
+            palm_poses_for(c, obj.grasp_radius, obj=obj)[0].translation(),
+            palm_poses_for(c, obj.grasp_radius, obj=obj,
+                           across_com_fraction=1.0)[0].translation())
+
+
 class TestInverseKinematics(unittest.TestCase):
     @classmethod
     def setUpClass(cls):

@@ -39,6 +39,8 @@ class TestScenario(unittest.TestCase):
                 "contact.discrete_contact_approximation",
             "sensors:\n  approach_range_m: 0.2\n": "sensors.approach_range_m",
             "catch:\n  h_catch_m: 0.9\n": "catch.h_catch_m",
+            "catch:\n  palm_across_com_fraction: 1.5\n":
+                "catch.palm_across_com_fraction",
             "arm:\n  kp: [1, 2]\n": "arm.kp",
             "throw:\n  knot_times_s: [0, 0.2, 0.1]\n  knot_q_rad: "
             "[[0,0,0,0,0,0],[0,0,0,0,0,0],[0,0,0,0,0,0]]\n": "throw.knot_times_s",

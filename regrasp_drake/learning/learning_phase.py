@@ -63,13 +63,18 @@ from regrasp_drake.learning.search import (
 from regrasp_drake.planning.catch_plan import (
     CatchPoint,
     catch_moments,
-    palm_poses_for,
 )
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.episode import EpisodeResult, release_time, run_episode
 from regrasp_drake.station.mlp_system import FEATURE_NAMES, CatchMlp, ParameterSpace
 from regrasp_drake.station.scenario import H_CATCH_RANGE, Scenario
-from regrasp_drake.throw_catch import CatchPlan, plan_catch, seen_flight, watch
+from regrasp_drake.throw_catch import (
+    CatchPlan,
+    catch_palm_poses,
+    plan_catch,
+    seen_flight,
+    watch,
+)
 from regrasp_drake.world.objects import ObjectSpec
 
 
@@ -126,10 +131,8 @@ def observe(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     reach = []
     for point in points:
         sides = []
-        for side, X_WG in zip(("paper", "mirrored"), palm_poses_for(
-                point, obj.grasp_radius, obj=obj,
-                com_margin_m=c.palm_com_margin_m,
-                max_palm_tilt_rad=float(np.arcsin(c.tilt_tolerance)))):
+        for side, X_WG in zip(("paper", "mirrored"),
+                              catch_palm_poses(scenario, point, obj)):
             result = ik.solve(X_WG, c.ik_seed_q_rad)
             sides.append({"side": side, "reachable": result.success,
                           "reason": result.reason()})

@@ -163,7 +163,8 @@ def palm_poses_for(catch_point: CatchPoint, grasp_radius_m: float,
                    palm_clearance_m: float = 0.002,
                    theta_rad: float = 0.3, obj: ObjectSpec | None = None,
                    com_margin_m: float = 0.02,
-                   max_palm_tilt_rad: float = 0.3) -> list[RigidTransform]:
+                   max_palm_tilt_rad: float = 0.3,
+                   across_com_fraction: float = 1.0) -> list[RigidTransform]:
     """The palm's poses under a catch point, preferred first: the fingertips
     (palm +x, the paper's z_k) horizontal and perpendicular to the object's
     axis; first on the side the paper's θ construction picks (eqs. 2-5), then
@@ -176,11 +177,12 @@ def palm_poses_for(catch_point: CatchPoint, grasp_radius_m: float,
     at most `max_palm_tilt_rad`: the paper wants "the hand parallel with the
     object at the moment of catching"), `palm_clearance_m` below the object
     along its normal (a piece hanging below the grasp piece meets the palm
-    first); across the axis it is centred under the centre of mass, and along
-    the axis under the grasp piece, shifted only as far as it takes to bring
-    the centre of mass within `com_margin_m` of the palm's centre (the palm
-    is 8.5 cm across: a centre of mass much farther out tips the object over
-    its edge)."""
+    first); across the axis it is centred under the centre of mass (or
+    `across_com_fraction` of the way to it from the grasp piece's axis), and
+    along the axis under the grasp piece, shifted only as far as it takes to
+    bring the centre of mass within `com_margin_m` of the palm's centre (the
+    palm is 8.5 cm across: a centre of mass much farther out tips the object
+    over its edge)."""
     y = catch_point.y_W.copy()
     y[2] = 0.0
     y /= np.linalg.norm(y)
@@ -193,8 +195,11 @@ def palm_poses_for(catch_point: CatchPoint, grasp_radius_m: float,
     p_OCm_W = R_WO @ obj.p_OCm  # the centre of mass from the origin
     p_OCm_W[2] = 0.0
     along = p_OCm_W @ y
-    p_WP = catch_point.p_WO + p_OCm_W - along * y + np.sign(along) * max(
-        0.0, abs(along) - com_margin_m) * y
+    # (At the fraction 1 these are the same floating-point operations as
+    # p_WO + p_OCm_W - along * y: the same plans, bit for bit.)
+    f = float(across_com_fraction)
+    p_WP = catch_point.p_WO + f * p_OCm_W - (f * along) * y + np.sign(
+        along) * max(0.0, abs(along) - com_margin_m) * y
     poses = []
     for x_W in (x, -x):
         R_WP = palm_frame(catch_point.y_W, max_palm_tilt_rad, x_W)

@@ -110,6 +110,11 @@ class CatchConfig:
     # shifted so that the centre of mass is at most this far from the palm's
     # centre (the palm is 0.085 m wide along the axis), [m].
     palm_com_margin_m: float = 0.02
+    # Across the object's axis the palm's centre lies this fraction of the
+    # way from the grasp piece's axis to the centre of mass: 1 under the
+    # centre of mass (an object landing flat does not tip off the palm), 0
+    # under the grasp piece (the fingers close around it), [-].
+    palm_across_com_fraction: float = 1.0
     # Inverse kinematics of the grasp pose starts from these arm joint angles,
     # [rad]: the throw's last knot, where the move to the grasp pose starts.
     # Damped least squares converges to the solution nearest its seed, so the
@@ -248,6 +253,8 @@ def validate(s: Scenario) -> Scenario:
     _in_range("catch.tilt_tolerance", k.tilt_tolerance, 0.0, 1.0)
     _in_range("catch.height_band_m", k.height_band_m, 0.0, 1.0, " m")
     _in_range("catch.palm_com_margin_m", k.palm_com_margin_m, 0.0, 0.05, " m")
+    _in_range("catch.palm_across_com_fraction", k.palm_across_com_fraction,
+              0.0, 1.0)
     if len(k.ik_seed_q_rad) != 6:
         raise field_error("catch.ik_seed_q_rad", k.ik_seed_q_rad, "6 joint angles")
     _in_range("catch.move_to_grasp_s", k.move_to_grasp_s, 0.05, 3.0, " s")
