@@ -10,6 +10,17 @@ from pathlib import Path
 EXAMPLE_OBJECTS = Path(__file__).parents[1] / "examples" / "my_object.yaml"
 
 
+def _object_file(directory, piece: str, name: str = "x") -> Path:
+    """A one-object file in `directory`: one grasp piece (YAML flow mapping
+    without the braces)."""
+    path = Path(directory) / f"{name}.yaml"
+    path.write_text(f"geometries:\n  g:\n    pieces:\n      - {{{piece}, "
+                    "center: [0, 0, 0], grasp: true}\nobjects:\n  - {name: "
+                    f"{name}, set: holdout, geometry: g, density: 200, h_cm: 0, "
+                    "r_cm: 0}\n")
+    return path
+
+
 def _run(*args):
     return subprocess.run([sys.executable, "-m", "regrasp_drake.cli", *args],
                           capture_output=True, text=True, timeout=120)
@@ -38,11 +49,8 @@ class TestCli(unittest.TestCase):
 
     def test_bad_object_file_refused(self):
         with tempfile.TemporaryDirectory() as d:
-            path = Path(d) / "o.yaml"
-            path.write_text("geometries:\n  g:\n    pieces:\n      - {shape: cone, "
-                            "radius: 0.03, length: 0.1, axis: y, center: [0, 0, 0], "
-                            "grasp: true}\nobjects:\n  - {name: x, set: test, "
-                            "geometry: g, density: 200, h_cm: 0, r_cm: 0}\n")
+            path = _object_file(
+                d, "shape: cone, radius: 0.03, length: 0.1, axis: y")
             result = _run("objects", "--object-file", str(path))
         self.assertEqual(result.returncode, 2)
         self.assertIn("shape", result.stderr)
@@ -81,12 +89,8 @@ class TestCli(unittest.TestCase):
         # A 0.4 m wide, 20 kg cylinder: valid as an object, but the watching
         # throw ends before the release with it near the ground.
         with tempfile.TemporaryDirectory() as d:
-            path = Path(d) / "big.yaml"
-            path.write_text("geometries:\n  g:\n    pieces:\n      - {shape: "
-                            "cylinder, radius: 0.2, length: 0.8, axis: y, "
-                            "center: [0, 0, 0], grasp: true}\nobjects:\n  - "
-                            "{name: big, set: holdout, geometry: g, density: "
-                            "200, h_cm: 0, r_cm: 0}\n")
+            path = _object_file(
+                d, "shape: cylinder, radius: 0.2, length: 0.8, axis: y", "big")
             result = _run("learn", "--object-file", str(path), "--library",
                           str(Path(d) / "library.yaml"))
         self.assertEqual(result.returncode, 2)
