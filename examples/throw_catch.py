@@ -2,6 +2,7 @@
 network's parameters; save the replay.
 
     .venv/bin/python examples/throw_catch.py [--object table1-row2]
+        [--object-file examples/my_object.yaml] [--out throw_catch.html]
 
 Throw 1 watches; the offline stage plans the catch; the trained network in
 models/ predicts (h_catch, h_down) from (v_catch, h_cm, r_cm, d_obj,
@@ -36,13 +37,18 @@ from regrasp_drake.world.objects import resolve_object
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--object", default="table1-row2")
+    parser.add_argument("--object", help="a catalogue object (default "
+                        "table1-row2), or with --object-file one of the file's")
+    parser.add_argument("--object-file", type=Path,
+                        help="your own objects (its first unless --object)")
     parser.add_argument("--out", type=Path, default=Path("throw_catch.html"))
     args = parser.parse_args()
     torch.set_num_threads(1)
     try:
         scenario = load_scenario()
-        obj = resolve_object(name=args.object)
+        obj = resolve_object(
+            name=args.object or (None if args.object_file else "table1-row2"),
+            file=args.object_file)
         model, _ = load_weights(MODELS_DIR / scenario.catch.weights)
         ik = ArmIk()
         plan = plan_catch(scenario, obj, ik, watch(scenario, obj, ik))
