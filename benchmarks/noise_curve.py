@@ -26,7 +26,8 @@ network are in models/results/library_*.yaml). A trial:
       planned when it releases the object, from the object's state seen
       then (`learn --at-release`), with the parameters that mode learned.
 Writes <out>.jsonl (one line per trial, as it finishes; a rerun resumes),
-<out>.json (catch rate per mode and level, with its 95 % Wilson interval)
+<out>.json (catch rate per mode and level, with its 95 % Wilson interval and
+every outcome's count)
 and <out>.png (the curves, the intervals as bars).
 """
 
@@ -38,6 +39,7 @@ import dataclasses as dc
 import json
 import math
 import sys
+from collections import Counter
 import time
 from pathlib import Path
 
@@ -107,6 +109,8 @@ def _trial(task):
             throw_number=2,
             at_release=at_release if mode == "at-release" else None)
         row["outcome"] = result.outcome
+        if result.message:  # why a "failed" episode failed
+            row["message"] = result.message
     except InputError as e:  # the noisy flight gave no reachable catch point
         row["outcome"] = "no plan"
         row["message"] = str(e)
@@ -189,6 +193,10 @@ def main(argv=None) -> int:
                 "objects": len({k[1] for k in done if k[0] == mode
                                 and k[2] == level and k[1] in args.objects
                                 and k[1] in learned[mode]}),
+                # How the others ended: dropped, failed (the state
+                # machine's message, e.g. a pose out of reach), no plan.
+                "outcomes": dict(sorted(Counter(
+                    r["outcome"] for r in rows).items())),
                 "catch_rate": caught / len(rows) if rows else None,
                 "catch_rate_95": interval and [round(v, 3) for v in interval]})
     summary = {"objects": args.objects, "trials_per_object": args.trials,
