@@ -1,4 +1,4 @@
-"""Catch rate against release noise, for watch-then-catch and first-throw.
+"""Catch rate against release noise, watching first, in first-throw mode and at release.
 
     .venv/bin/python benchmarks/noise_curve.py [--objects table1-row1 …]
         [--levels 0 0.25 0.5 1 2 4] [--trials 12] [--workers 2]
@@ -27,8 +27,7 @@ network are in models/results/library_*.yaml). A trial:
       then (`learn --at-release`), with the parameters that mode learned.
 Writes <out>.jsonl (one line per trial, as it finishes; a rerun resumes),
 <out>.json (catch rate per mode and level, with its 95 % Wilson interval and
-every outcome's count)
-and <out>.png (the curves, the intervals as bars).
+every outcome's count) and <out>.png (the curves, the intervals as bars).
 """
 
 # regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
@@ -39,8 +38,8 @@ import dataclasses as dc
 import json
 import math
 import sys
-from collections import Counter
 import time
+from collections import Counter
 from pathlib import Path
 
 RELEASE_STD_PER_LEVEL_S = 0.002
