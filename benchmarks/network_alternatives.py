@@ -20,17 +20,19 @@ entry's success map. Predictors:
   cell, not one per map. Kept at the epoch of the best smoothed catch
   chance on the validation maps;
 - nearest maps (k): a cell that catches on the most of the k training
-  maps nearest in the five features (standardized over the training
-  split), the one of those the data set's label rule picks (farthest from
-  the others, `dataset.label_cell`); for k = 1 the nearest map's label, for
-  k = every training map a best constant cell;
+  maps nearest in the five features (each scaled by its spread over the
+  training split, as the map-prior search's kernel weighs them,
+  `search.feature_weights`), the one of those the data set's label rule
+  picks (farthest from the others, `dataset.label_cell`); for k = 1 the
+  nearest map's label, for k = every training map a best constant cell;
 - best constant cell and mean label: the two baselines of `train.py`;
 - a random cell: the expected rate of a cell drawn at random for each
   test entry (its map's share of catching cells), the floor.
 
-Writes <out>.json (per predictor: the mean catch rate over the splits, the
-per-split rates, and the splits where it catches more / as many / fewer
-test entries than the best constant cell) and <out>.png.
+Writes <out>.jsonl (each split's rates as soon as they are known; a rerun
+skips the splits there), <out>.json (per predictor: the mean catch rate over
+the splits, the per-split rates, and the splits where it catches more / as
+many / fewer test entries than the best constant cell) and <out>.png.
 """
 
 # regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
@@ -46,8 +48,10 @@ import numpy as np
 import torch
 
 from regrasp_drake import grid
+from regrasp_drake.grid import open_rows, read_rows
 from regrasp_drake.errors import InputError
 from regrasp_drake.learning.dataset import label_cell, load_samples, object_of
+from regrasp_drake.learning.search import feature_weights
 from regrasp_drake.learning.train import _arrays, fit, split_indices, train
 from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.station.mlp_system import CatchMlp, ParameterSpace
@@ -100,51 +104,70 @@ def nearest_maps_cells(x, maps, split, k):
     """Test-split cells catching on the most of the k nearest training maps
     (of those, the one the label rule picks)."""
     train_i, _, test_i = split
-    mean, std = x[train_i].mean(axis=0), x[train_i].std(axis=0)
-    z = (x - mean) / np.where(std > 1e-12, std, 1.0)
     cells = []
     for t in test_i:
-        d = np.linalg.norm(z[train_i] - z[t], axis=1)
-        near = np.asarray(train_i)[np.argsort(d, kind="stable")[:k]]
+        # Nearness as the map-prior search weighs it (features scaled by
+        # their spread over the training maps); a wide kernel, so that no
+        # weight underflows and the order is the distances'.
+        weights = feature_weights(x[t], x[train_i], sigma=100.0)
+        near = np.asarray(train_i)[np.argsort(-weights, kind="stable")[:k]]
         votes = maps[near].sum(axis=0)
         cells.append(label_cell(votes == votes.max()))
     return cells
 
 
-def run(seeds, epochs, data_dir=DATA_DIR, progress=None) -> dict:
-    """Section above; returns the JSON's contents."""
+def run(seeds, epochs, data_dir=DATA_DIR, progress=None,
+        rows_path: Path | None = None) -> dict:
+    """Section above; returns the JSON's contents. With `rows_path`, each
+    split's rates are a JSON line there as soon as they are known, and the
+    splits already there (same seed and epochs) are not redone."""
     samples = load_samples(data_dir)
     with np.load(Path(data_dir) / "maps.npz") as data:
         by_name = dict(zip(data["objects"].tolist(), data["caught"]))
     maps = np.array([by_name[s["object"]] for s in samples], float)
     x, _ = _arrays(samples)
     groups = [object_of(s["object"]) for s in samples]
-    rates: dict[str, list] = {}
 
-    def score(name, cells, test_i):
-        rates.setdefault(name, []).append(
-            float(np.mean([maps[t][c] for t, c in zip(test_i, cells)])))
+    def rate(cells, test_i):
+        return float(np.mean([maps[t][c] for t, c in zip(test_i, cells)]))
 
+    def split_rates(seed, tmp):
+        split = split_indices(len(samples), seed, groups=groups)
+        report = train(data_dir, Path(tmp) / "net.pt", seed=seed,
+                       epochs=epochs)["test"]
+        rates = {name: report[key]["catch_rate"] for name, key in (
+            ("network, labels", "network"),
+            ("best constant cell", "best_constant_cell"),
+            ("mean label", "mean_label"))}
+        for sigma in SIGMAS_CELLS:
+            rates[f"network, smoothed maps (σ {sigma} cells)"] = rate(
+                map_trained_cells(x, maps, split, sigma, seed, epochs),
+                split[2])
+        for k in NEIGHBOURS:
+            rates[f"nearest maps (k {k})"] = rate(
+                nearest_maps_cells(x, maps, split, k), split[2])
+        rates["a random cell"] = float(maps[split[2]].mean())
+        return rates
+
+    def key(row):
+        return row["seed"], row["epochs"]
+
+    done = read_rows(rows_path, key) if rows_path else {}
     with tempfile.TemporaryDirectory() as tmp:
         for n, seed in enumerate(seeds):
-            split = split_indices(len(samples), seed, groups=groups)
-            report = train(data_dir, Path(tmp) / "net.pt", seed=seed,
-                           epochs=epochs)["test"]
-            for name, key in (("network, labels", "network"),
-                              ("best constant cell", "best_constant_cell"),
-                              ("mean label", "mean_label")):
-                rates.setdefault(name, []).append(report[key]["catch_rate"])
-            for sigma in SIGMAS_CELLS:
-                score(f"network, smoothed maps (σ {sigma} cells)",
-                      map_trained_cells(x, maps, split, sigma, seed, epochs),
-                      split[2])
-            for k in NEIGHBOURS:
-                score(f"nearest maps (k {k})",
-                      nearest_maps_cells(x, maps, split, k), split[2])
-            rates.setdefault("a random cell", []).append(
-                float(maps[split[2]].mean()))
+            if (seed, epochs) not in done:
+                row = {"seed": seed, "epochs": epochs,
+                       "rates": split_rates(seed, tmp)}
+                done[key(row)] = row
+                if rows_path:
+                    with open_rows(rows_path) as f:
+                        f.write(json.dumps(row) + "\n")
             if progress:
                 progress(n + 1, len(seeds))
+    rates: dict[str, list] = {}
+    for seed in seeds:
+        for name, value in done[(seed, epochs)]["rates"].items():
+            rates.setdefault(name, []).append(value)
     constant = np.array(rates["best constant cell"])
     return {
         "data": str(data_dir), "samples": len(samples), "seeds": list(seeds),
@@ -200,7 +223,9 @@ def main(argv=None) -> int:
         for flag, value in (("--seeds", args.seeds), ("--epochs", args.epochs)):
             if value < 1:
                 raise InputError(f"{flag}: got {value}, expected an integer ≥ 1")
-        result = run(range(args.seeds), args.epochs, args.data, progress=lambda
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        result = run(range(args.seeds), args.epochs, args.data,
+                     rows_path=args.out.with_suffix(".jsonl"), progress=lambda
                      n, total: print(f"\rsplit {n}/{total}", end="",
                                      file=sys.stderr, flush=True))
     except InputError as e:
@@ -211,7 +236,6 @@ def main(argv=None) -> int:
         v = r["vs_best_constant_cell"]
         print(f"{name:42s} {r['mean_catch_rate']:.3f}   vs best constant cell: "
               f"{v['more']} more / {v['as_many']} as many / {v['fewer']} fewer")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
     plot(result, args.out.with_suffix(".png"))
     return 0

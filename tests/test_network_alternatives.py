@@ -1,7 +1,12 @@
 """benchmarks/network_alternatives.py: the predictors it compares with the
 network, on the shipped data set's maps."""
 
+import contextlib
+import io
+import json
+import tempfile
 import unittest
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -72,6 +77,25 @@ class NetworkAlternativesTest(RefusalAssertions, unittest.TestCase):
             epochs=300)
         trained = np.mean([self.maps[t][c] for t, c in zip(train_i, cells)])
         self.assertGreater(trained, best + 0.03)
+
+    def test_a_rerun_keeps_the_splits_already_written(self):
+        with tempfile.TemporaryDirectory() as d:
+            out = Path(d) / "alt"
+            args = ["--epochs", "20", "--out", str(out)]
+            with contextlib.redirect_stdout(io.StringIO()), \
+                    contextlib.redirect_stderr(io.StringIO()):
+                self.assertEqual(self.main(["--seeds", "1", *args]), 0)
+                first = out.with_suffix(".jsonl").read_text()
+                self.assertEqual(self.main(["--seeds", "2", *args]), 0)
+            lines = out.with_suffix(".jsonl").read_text().splitlines()
+            result = json.loads(out.with_suffix(".json").read_text())
+        # The seed-0 line is kept as written, seed 1 is added once.
+        self.assertEqual(lines[0] + "\n", first)
+        self.assertEqual([json.loads(line)["seed"] for line in lines], [0, 1])
+        rates = result["predictors"]["nearest maps (k 1)"]["catch_rates"]
+        self.assertEqual(rates[0], round(json.loads(lines[0])["rates"][
+            "nearest maps (k 1)"], 4))
+        self.assertEqual(len(rates), 2)
 
     def test_bad_arguments_refused(self):
         self.assertRefused(["--seeds", "0"], "--seeds", "got 0")
