@@ -118,7 +118,8 @@ def tolerance_mm(rows) -> float | None:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--objects", nargs="+", default=_HELD_OUT)
     results = Path(__file__).parents[1] / "models" / "results"
     parser.add_argument("--library", type=Path, nargs="+",

@@ -184,7 +184,8 @@ def episode_from_wall_s(scenario, obj, ik, X_WG, params, t_start,
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--object", default="table1-row2")
     parser.add_argument("--runs", type=int, default=5)
     parser.add_argument("--json", type=Path,

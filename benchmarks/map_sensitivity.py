@@ -90,7 +90,8 @@ def summarize(maps: dict, stds) -> dict:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--objects", nargs="+", default=_OBJECTS)
     parser.add_argument("--stds", type=float, nargs="+", default=_STDS,
                         help="joint-velocity noise levels, rad/s")

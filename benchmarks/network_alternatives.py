@@ -207,7 +207,8 @@ def plot(result, path):
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--seeds", type=int, default=20, metavar="N",
                    help="splits with the seeds 0 … N-1 (default 20)")
     p.add_argument("--epochs", type=int, default=3000, metavar="N",

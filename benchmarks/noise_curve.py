@@ -118,7 +118,8 @@ def _trial(task):
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--objects", nargs="+", default=[
         f"table1-row{k}" for k in range(1, 6)])
     parser.add_argument("--levels", nargs="+", type=float,
@@ -144,6 +145,14 @@ def main(argv=None) -> int:
                   f"{expected}", file=sys.stderr)
             return 2
     from regrasp_drake.learning.library import load_library
+    from regrasp_drake.world.objects import load_catalogue
+    catalogue = load_catalogue()
+    for name in args.objects:
+        if name not in catalogue:
+            print(f"noise_curve: error: --objects: got {name!r}, expected a "
+                  "catalogue object (see `regrasp-drake objects`)",
+                  file=sys.stderr)
+            return 2
     libraries = {"watch": args.library, "first-throw": args.first_throw_library,
                  "at-release": args.at_release_library}
     learned = {}
@@ -160,10 +169,11 @@ def main(argv=None) -> int:
             print(f"noise_curve: {mode}: nothing learned for {missing} in "
                   f"{path}; those objects are left out of this mode",
                   file=sys.stderr)
-    if not any(learned.values()):
-        print("noise_curve: error: --library, --first-throw-library: nothing "
-              "learned for any object (run `regrasp-drake table1 --library F` "
-              "first)", file=sys.stderr)
+    if not any(n in learned[mode] for mode in learned for n in args.objects):
+        print(f"noise_curve: error: --objects: got {args.objects}, expected "
+              "objects learned in --library, --first-throw-library or "
+              "--at-release-library (`regrasp-drake table1 --objects … "
+              "--library F` writes one)", file=sys.stderr)
         return 2
     from regrasp_drake.grid import append_rows, read_rows
     lines = args.out.with_suffix(".jsonl")

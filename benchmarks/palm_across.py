@@ -75,7 +75,8 @@ def table1(path: Path) -> list:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", type=Path, default=HERE.with_suffix(".json"))
     args = p.parse_args(argv)
     missing = [str(path) for path in MAPS.values() if not path.is_file()]

@@ -137,7 +137,8 @@ def _cross_validate(rows, t, h) -> dict:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--objects", nargs="+",
                         help="catalogue objects (default: every training "
                              "object and the five Table 1 objects)")

@@ -237,7 +237,8 @@ def network_splits(names, maps, features, seeds=range(5)) -> dict:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", type=Path,
                         default=Path(__file__).with_name("search_prior.json"))
     parser.add_argument("--no-network-splits", action="store_true",

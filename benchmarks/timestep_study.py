@@ -222,7 +222,8 @@ def summarize(results: dict, steps_ms) -> dict:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--objects", nargs="+", default=_OBJECTS)
     parser.add_argument("--steps-ms", type=float, nargs="+", default=_STEPS_MS)
     parser.add_argument("--flights-only", action="store_true",

@@ -36,7 +36,8 @@ from regrasp_drake.world.objects import resolve_object
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--object", help="a catalogue object (default "
                         "table1-row2), or with --object-file one of the file's")
     parser.add_argument("--object-file", type=Path,

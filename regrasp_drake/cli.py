@@ -450,11 +450,13 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", type=Path, metavar="F", help="write the rows")
     p.add_argument("--markdown", type=Path, metavar="F",
                    help="write the table")
-    p.add_argument("--maps-dir", type=Path, default=Path("table1-maps"),
-                   metavar="DIR", help="each test object's success map, with "
-                   "the search marked (JSON lines + PNG; default table1-maps)")
-    p.add_argument("--no-maps", action="store_true",
-                   help="skip the success maps (150 episodes per object)")
+    maps = p.add_mutually_exclusive_group()
+    maps.add_argument("--maps-dir", type=Path, default=Path("table1-maps"),
+                      metavar="DIR", help="each test object's success map, "
+                      "with the search marked (JSON lines + PNG; default "
+                      "table1-maps)")
+    maps.add_argument("--no-maps", action="store_true",
+                      help="skip the success maps (150 episodes per object)")
     p.add_argument("--max-throws", type=int, metavar="N",
                    help="stop each object's learning phase after N throws")
     p.add_argument("--objects", nargs="+", metavar="NAME",
@@ -475,6 +477,46 @@ def make_parser() -> argparse.ArgumentParser:
     return parser
 
 
+# The arguments that name a file a command writes (`apply` only reads its
+# --library), and those that name a directory it makes and writes into.
+_OUTPUT_FILES = ("json", "html", "plot", "markdown", "library", "out")
+_OUTPUT_DIRS = ("maps_dir",)
+
+
+def _check_outputs(args) -> None:
+    """Refuses, before any work, an output path that could not be written:
+    a file's directory must exist and be writable; a directory the command
+    makes must lie under a writable one. (Not after the simulation.)"""
+    for name in _OUTPUT_FILES + _OUTPUT_DIRS:
+        path = getattr(args, name, None)
+        if (not isinstance(path, Path)
+                or (name == "library" and args.command == "apply")
+                or (name == "maps_dir" and args.no_maps)):
+            continue
+        flag = "--" + name.replace("_", "-")
+        made = name in _OUTPUT_DIRS or (name == "out"
+                                        and args.command == "dataset")
+        if made:
+            if path.exists() and not path.is_dir():
+                raise InputError(f"{flag}: got {str(path)!r}, expected a "
+                                 "directory (it is a file)")
+            directory = path
+            while not directory.exists():
+                directory = directory.parent
+        else:
+            if path.is_dir():
+                raise InputError(f"{flag}: got {str(path)!r}, expected a "
+                                 "file path (it is a directory)")
+            directory = path.parent
+            if not directory.is_dir():
+                raise InputError(f"{flag}: got {str(path)!r}, expected a "
+                                 "path in an existing directory")
+        if not directory.is_dir() or not os.access(directory, os.W_OK):
+            raise InputError(f"{flag}: got {str(path)!r}, expected a path "
+                             f"under a writable directory ({str(directory)!r}"
+                             " is not one)")
+
+
 def main(argv=None) -> int:
     args = make_parser().parse_args(argv)
     try:
@@ -483,10 +525,17 @@ def main(argv=None) -> int:
             raise InputError("--object, --object-file: got neither, expected "
                              "a catalogue object's name, an object file, or "
                              "both (the named object of the file)")
+        _check_outputs(args)
         return args.func(args)
     except InputError as e:
         print(f"regrasp-drake {args.command}: error: {e}", file=sys.stderr)
         return 2
+    except BrokenPipeError:
+        # The reader went away (`regrasp-drake objects | head`): no
+        # traceback. Python's documented recipe: what is left of stdout
+        # goes nowhere, and the exit status is 1.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
 
 
 if __name__ == "__main__":

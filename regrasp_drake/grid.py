@@ -64,15 +64,16 @@ def read_rows(path: Path, key=lambda row: tuple(row["cell"])) -> dict:
 
 def open_rows(path: Path):
     """The JSON-lines file at path, opened to append rows. A last line cut by
-    a kill (no newline) is ended first, so that the next row is a line of its
-    own (read_rows skips the cut one; its work runs again)."""
+    a kill (no newline at its end) is removed first, so that every line of
+    the file stays a whole row (its work runs again; read_rows would skip
+    it too)."""
     path = Path(path)
-    cut = path.exists() and path.stat().st_size > 0 and not (
-        path.read_bytes()[-1:] == b"\n")
-    f = path.open("a")
-    if cut:
-        f.write("\n")
-    return f
+    if path.exists():
+        data = path.read_bytes()
+        if data and not data.endswith(b"\n"):
+            with path.open("r+b") as f:
+                f.truncate(data.rfind(b"\n") + 1)
+    return path.open("a")
 
 
 def append_rows(function, tasks, path: Path, done: dict, key, *,

@@ -109,6 +109,43 @@ class TestCli(unittest.TestCase):
         self.assertIn("--object, --object-file: got neither", result.stderr)
 
 
+    def test_unwritable_output_refused_before_any_work(self):
+        with tempfile.TemporaryDirectory() as d:
+            missing = str(Path(d) / "no" / "such" / "dir")
+            cases = (
+                (["throw", "--object", "table1-row2", "--json",
+                  missing + "/t.json"], "--json", "in an existing directory"),
+                (["learn", "--object", "table1-row2", "--library",
+                  missing + "/lib.yaml"], "--library",
+                 "in an existing directory"),
+                (["grid", "--object", "table1-row2", "--out", d], "--out",
+                 "a file path (it is a directory)"),
+            )
+            for args, flag, expected in cases:
+                result = _run(*args)
+                with self.subTest(command=args[0]):
+                    self.assertEqual(result.returncode, 2)
+                    # Refused at once: no watching throw's progress line.
+                    self.assertEqual(len(result.stderr.strip().splitlines()),
+                                     1, result.stderr)
+                    self.assertIn(f"{flag}: got ", result.stderr)
+                    self.assertIn(expected, result.stderr)
+            self.assertFalse(Path(d, "no").exists())
+
+    def test_output_cut_by_the_reader_is_no_traceback(self):
+        # The reader is gone before the command writes (`objects | head`
+        # when head has had its lines).
+        process = subprocess.Popen(
+            [sys.executable, "-m", "regrasp_drake.cli", "objects"],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        process.stdout.close()
+        stderr = process.stderr.read()
+        process.wait(timeout=120)
+        process.stderr.close()
+        self.assertEqual(process.returncode, 1)
+        self.assertEqual(stderr, "")
+
+
 class TestExampleObjects(unittest.TestCase):
     """examples/my_object.yaml, the README's own-object example."""
 

@@ -1,5 +1,6 @@
 """The parameter space: 150 cells inside the paper's ranges."""
 
+import json
 import tempfile
 import unittest
 from pathlib import Path
@@ -24,7 +25,8 @@ def _square(k):
 class AppendRowsTest(unittest.TestCase):
     """Resumable JSON lines (open_rows, which append_rows and run_map use):
     rows appended as they finish, in the tasks' order; after a line cut by a
-    kill, the next rows are whole lines and read back."""
+    kill, the cut line is gone and the next rows are whole lines, read
+    back."""
 
     def test_rows_written_and_resumed(self):
         with tempfile.TemporaryDirectory() as d:
@@ -47,6 +49,9 @@ class AppendRowsTest(unittest.TestCase):
                         label="test", unit="tasks")
             self.assertEqual(read_rows(path, key=key),
                              {k: _square(k) for k in range(1, 6)})
+            # Every line a whole row: a plain JSON-lines reader reads it.
+            rows = [json.loads(line) for line in path.read_text().splitlines()]
+            self.assertEqual(sorted(r["k"] for r in rows), [1, 2, 3, 4, 5])
 
 
 class TestGrid(unittest.TestCase):

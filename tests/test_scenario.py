@@ -52,8 +52,33 @@ class TestScenario(unittest.TestCase):
                 self.assertIn(field, str(e.exception))
                 self.assertEqual(len(str(e.exception).splitlines()), 1)
 
+    def test_wrong_type_refused_with_field(self):
+        cases = {
+            "time_step_s: fast\n": ("time_step_s", "a number"),
+            "catch:\n  move_to_grasp_s: soon\n":
+                ("catch.move_to_grasp_s", "a number"),
+            "catch: 5\n": ("catch", "a mapping"),
+            "sensors:\n  levels: [1, 2]\n": ("sensors.levels", "an integer"),
+            "throw:\n  noise:\n    seed: 1.5\n":
+                ("throw.noise.seed", "an integer"),
+            "throw:\n  knot_q_rad: [[0, 0], [0, x]]\n":
+                ("throw.knot_q_rad[1][1]", "a number"),
+            "arm:\n  kp: 3\n": ("arm.kp", "a list of numbers"),
+            "catch:\n  palm_across_com_fractoin: 0\n":
+                ("catch.palm_across_com_fractoin", "palm_across_com_fraction"),
+            "- a\n": ("the scenario", "a mapping"),
+        }
+        for text, (field, expected) in cases.items():
+            with self.subTest(field=field):
+                with self.assertRaises(InputError) as e:
+                    self._load(text)
+                message = str(e.exception)
+                self.assertTrue(message.startswith(field + ":"), message)
+                self.assertIn(expected, message)
+                self.assertEqual(len(message.splitlines()), 1)
+
     def test_not_yaml_refused(self):
-        with self.assertRaises(InputError):
+        with self.assertRaisesRegex(InputError, "not valid YAML at line 2, column 1"):
             self._load("time_step_s: [unclosed\n")
 
     def test_missing_file_refused(self):

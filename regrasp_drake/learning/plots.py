@@ -107,10 +107,17 @@ def plot_flight(observation, scenario, path) -> Path:
                      markerfacecolor="tab:green" if p.t_s == used else "none")
         ax.plot(p.t_s, p.p_WO[2], **style)
         axes[1].plot(p.t_s, p.tilt, **style)
-        ax.annotate(f"v_catch {p.v_catch:.2f} m/s", (p.t_s, p.p_WO[2]),
-                    textcoords="offset points", xytext=(6, 6), fontsize=8)
+        # Catch points lie a few ms apart: only the used one is labelled
+        # (the others' v_catch range is in the title).
+        if p.t_s == used:
+            ax.annotate(f"v_catch {p.v_catch:.2f} m/s", (p.t_s, p.p_WO[2]),
+                        textcoords="offset points", xytext=(8, -14),
+                        fontsize=8)
+    speeds = [p.v_catch for p in observation.points]
     ax.set_title(f"{observation.watched.object}: watched flight, "
                  f"{len(observation.points)} catch point(s)"
+                 + (f", v_catch {min(speeds):.2f} … {max(speeds):.2f} m/s"
+                    if len(speeds) > 1 else "")
                  + ("" if used is not None else ", none reachable"))
     axes[1].set_xlabel("time [s]")
     for a in axes:

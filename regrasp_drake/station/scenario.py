@@ -1,15 +1,18 @@
 """The scenario: every physical constant of a throw-and-catch episode, with units.
 
 One typed dataclass tree, loaded from YAML with pydrake's `yaml_load_typed`
-(unknown keys are refused by the loader), then range-checked field by field.
+(unknown keys and values of the wrong type are refused first, naming the
+field: `check_schema`), then range-checked field by field.
 The defaults below are the shipped scenario; a scenario file need only name
 the fields it changes.
 """
 
 import dataclasses as dc
 import math
+import typing
 from pathlib import Path
 
+import yaml
 from pydrake.common.yaml import yaml_load_typed
 
 from regrasp_drake.errors import InputError, field_error
@@ -302,8 +305,63 @@ def load_scenario(path: str | Path | None = None) -> Scenario:
     if not path.is_file():
         raise field_error("--scenario", str(path), "an existing YAML file")
     try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(e, "problem", None) or str(e).splitlines()[0]
+        raise InputError(f"{path}: not valid YAML{where}: {problem}") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(f"{path}: cannot be read: {e}") from None
+    if data is not None:
+        # The loader's own messages do not name the section of a field.
+        check_schema(data, Scenario, "")
+    try:
         scenario = yaml_load_typed(schema=Scenario, filename=str(path))
     except Exception as e:  # pydrake raises RuntimeError/TypeError/yaml errors.
         first = str(e).strip().splitlines()[0] if str(e).strip() else repr(e)
         raise InputError(f"{path}: {first}") from None
     return validate(scenario)
+
+
+def check_schema(value, schema, field: str) -> None:
+    """Checks parsed YAML `value` against the type `schema` (a dataclass,
+    float, int, str or list of them) before pydrake's loader reads it: an
+    unknown key or a value of the wrong type raises the InputError that
+    names the field (dotted from the top, `field` being this value's)."""
+    if dc.is_dataclass(schema):
+        if not isinstance(value, dict):
+            raise field_error(field or "the scenario", value,
+                              "a mapping of field: value")
+        hints = typing.get_type_hints(schema)
+        for key, item in value.items():
+            name = f"{field}.{key}" if field else str(key)
+            if key not in hints:
+                raise InputError(
+                    f"{name}: unknown field, expected one of "
+                    f"{', '.join(hints)}")
+            check_schema(item, hints[key], name)
+    elif typing.get_origin(schema) is list:
+        (inner,) = typing.get_args(schema)
+        if not isinstance(value, list):
+            raise field_error(field, value, _type_name(schema))
+        for i, item in enumerate(value):
+            check_schema(item, inner, f"{field}[{i}]")
+    elif not _is_a(value, schema):
+        raise field_error(field, value, _type_name(schema))
+
+
+def _is_a(value, kind) -> bool:
+    if isinstance(value, bool):  # YAML's true/false is no number
+        return kind is bool
+    if kind is float:
+        return isinstance(value, (int, float))
+    return isinstance(value, kind)
+
+
+def _type_name(kind) -> str:
+    if typing.get_origin(kind) is list:
+        (inner,) = typing.get_args(kind)
+        return f"a list of {_type_name(inner).removeprefix('a ')}s"
+    return {float: "a number", int: "an integer", str: "a string",
+            bool: "true or false"}.get(kind, str(kind))
