@@ -10,6 +10,7 @@ import numpy as np
 from regrasp_drake.errors import InputError
 from regrasp_drake.learning.flight_predictor import (
     FlightPredictor,
+    dataset_flights,
     flight_from_release,
     free_time_s,
     object_inputs,
@@ -101,6 +102,16 @@ class PredictorTest(unittest.TestCase):
         self.assertEqual(len(object_inputs(obj)), len(json.loads(
             SHIPPED.read_text())["inputs"]))
 
+    def test_shipped_predictor_is_the_fit_on_the_shipped_data_set(self):
+        # What `regrasp-drake train-flight` writes, byte for byte.
+        objects, states = dataset_flights(MODELS_DIR / "dataset")
+        self.assertEqual(len(objects), 56)
+        predictor = FlightPredictor.fit(
+            objects, states, t_free_s=free_time_s(load_scenario()))
+        with tempfile.TemporaryDirectory() as d:
+            path = predictor.save(Path(d) / "fp.json")
+            self.assertEqual(path.read_bytes(), SHIPPED.read_bytes())
+
     def test_missing_corrupt_and_foreign_files_refused(self):
         with tempfile.TemporaryDirectory() as d:
             d = Path(d)
@@ -126,77 +137,87 @@ class PredictorTest(unittest.TestCase):
 
 
 class FirstThrowModeTest(unittest.TestCase):
-    """First-throw mode on one test object: no watching throw; the first
+    """First-throw mode on two test objects: no watching throw; the first
     throw is a catch attempt at the network's cell on the predicted flight's
-    plan; when it fails, the catch is planned again from what was seen of
-    that throw's flight, and the search goes on, the throws counted."""
+    plan. table1-row2 is caught there, on throw 1; table1-row3 is not, and
+    its catch is planned again from what was seen of that throw's flight,
+    and the search goes on, the throws counted (README, Table 1)."""
 
     @classmethod
     def setUpClass(cls):
         cls.scenario = load_scenario()
-        cls.obj = load_catalogue()["table1-row2"]
         cls.ik = ArmIk()
         cls.predictor = FlightPredictor.load(SHIPPED)
         cls.model, _ = load_weights(MODELS_DIR / "catch_mlp.pt")
-        cls.episodes = []
-        cls.result = learn(cls.scenario, cls.obj, cls.model, ik=cls.ik,
-                           flight_predictor=cls.predictor, max_throws=2,
-                           progress=None, on_episode=cls.episodes.append)
-        cls.watched = watch(cls.scenario, cls.obj, cls.ik)
+        cls.runs = {}
+        for name in ("table1-row2", "table1-row3"):
+            obj = load_catalogue()[name]
+            episodes = []
+            result = learn(cls.scenario, obj, cls.model, ik=cls.ik,
+                           flight_predictor=cls.predictor, max_throws=3,
+                           progress=None, on_episode=episodes.append)
+            cls.runs[name] = (obj, result, episodes)
 
     def test_no_watching_throw(self):
-        self.assertIsNone(self.result.watched)
-        self.assertTrue(self.result.first_throw)
-        self.assertEqual(self.result.attempts[0].throw, 1)
-        self.assertEqual(len(self.episodes), self.result.throws)
+        for name, (_, result, episodes) in self.runs.items():
+            with self.subTest(object=name):
+                self.assertIsNone(result.watched)
+                self.assertTrue(result.first_throw)
+                self.assertEqual(result.attempts[0].throw, 1)
+                self.assertEqual(len(episodes), result.throws)
 
     def test_first_plan_is_the_predicted_flights(self):
-        plan = plan_catch(self.scenario, self.obj, self.ik,
-                          self.predictor.as_watched(self.obj, self.scenario))
-        first = self.result.first_plan or self.result.plan
-        self.assertEqual(first.catch_point.t_s, plan.catch_point.t_s)
-        np.testing.assert_array_equal(first.X_WG.GetAsMatrix4(),
-                                      plan.X_WG.GetAsMatrix4())
+        for name, (obj, result, _) in self.runs.items():
+            plan = plan_catch(self.scenario, obj, self.ik,
+                              self.predictor.as_watched(obj, self.scenario))
+            first = result.first_plan or result.plan
+            with self.subTest(object=name):
+                self.assertEqual(first.catch_point.t_s, plan.catch_point.t_s)
+                np.testing.assert_array_equal(first.X_WG.GetAsMatrix4(),
+                                              plan.X_WG.GetAsMatrix4())
 
-    def test_caught_on_throw_one_or_replanned_from_what_was_seen(self):
-        r = self.result
-        if r.attempts[0].outcome == "caught":
-            self.assertEqual(r.throws, 1)
-            self.assertIsNone(r.replanned)
-            return
+    def test_caught_on_throw_one(self):
+        _, r, _ = self.runs["table1-row2"]
+        self.assertEqual([a.outcome for a in r.attempts], ["caught"])
+        self.assertEqual(r.throws, 1)
+        self.assertIsNone(r.replanned)
+        self.assertEqual(r.attempts[0].cell, r.start_cell)
+
+    def test_replanned_from_what_was_seen(self):
+        obj, r, episodes = self.runs["table1-row3"]
+        self.assertNotEqual(r.attempts[0].outcome, "caught")
         self.assertEqual(r.replanned["after_throw"], 1)
         self.assertEqual(r.replanned["from"], "seen flight")
         # What was seen of throw 1 is the watching throw's flight, sample for
         # sample, until the hand touched the object (before the flight ends).
-        seen = seen_flight(self.scenario, self.obj, self.episodes[0])
+        watched = watch(self.scenario, obj, self.ik)
+        seen = seen_flight(self.scenario, obj, episodes[0])
         n = seen.logs.t.size
-        self.assertLess(n, self.watched.logs.t.size)
+        self.assertLess(n, watched.logs.t.size)
         self.assertAlmostEqual(seen.logs.t[-1], r.replanned["seen_until_s"])
         np.testing.assert_array_equal(seen.logs.object_state,
-                                      self.watched.logs.object_state[:, :n])
+                                      watched.logs.object_state[:, :n])
         # Here it holds the watching throw's catch point: the same plan.
-        plan = plan_catch(self.scenario, self.obj, self.ik, self.watched)
+        plan = plan_catch(self.scenario, obj, self.ik, watched)
         np.testing.assert_array_equal(r.plan.X_WG.GetAsMatrix4(),
                                       plan.X_WG.GetAsMatrix4())
         self.assertEqual(r.attempts[1].cell, r.start_cell)
         self.assertEqual(r.search_attempts, r.attempts[1:])
 
     def test_throws_counted(self):
-        r = self.result
-        self.assertEqual(r.throws, len(r.attempts))
-        self.assertEqual([a.throw for a in r.attempts],
-                         list(range(1, r.throws + 1)))
-        outcomes = [a.outcome for a in r.attempts]
-        if r.caught:
-            self.assertEqual(outcomes[-1], "caught")
-            self.assertNotIn("caught", outcomes[:-1])
-            self.assertEqual(r.stopped, "caught")
-        else:
-            self.assertEqual(r.throws, 2)  # the cap
-            self.assertEqual(r.stopped, "max_throws")
-            self.assertNotIn("caught", outcomes)
-        self.assertAlmostEqual(r.sim_time_s,
-                               sum(a.sim_time_s for a in r.attempts), places=9)
+        for name, (_, r, _) in self.runs.items():
+            with self.subTest(object=name):
+                self.assertEqual(r.throws, len(r.attempts))
+                self.assertEqual([a.throw for a in r.attempts],
+                                 list(range(1, r.throws + 1)))
+                outcomes = [a.outcome for a in r.attempts]
+                self.assertTrue(r.caught)
+                self.assertEqual(outcomes[-1], "caught")
+                self.assertNotIn("caught", outcomes[:-1])
+                self.assertEqual(r.stopped, "caught")
+                self.assertAlmostEqual(
+                    r.sim_time_s, sum(a.sim_time_s for a in r.attempts),
+                    places=9)
 
 
 class AtReleaseTest(unittest.TestCase):

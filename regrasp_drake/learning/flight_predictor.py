@@ -370,20 +370,12 @@ def summarize(rows) -> dict:
     return out
 
 
-def train_from_dataset(data_dir, scenario, out, *, ik, eval_objects=(),
-                       ridge: float = 1.0, progress=None) -> dict:
-    """Fits the predictor on the data set's free-flight states (every
-    training object's), writes it to `out`, and reports its
-    leave-one-geometry-out cross-validation and its errors on
-    `eval_objects` (ObjectSpecs never trained on), each watched once to know
-    its true flight: catch position (mm), v_catch (m/s), catch time (ms),
-    axis (degrees), and the offset and axis at the actual catch moment.
-    Also writes the report as <out>.report.json."""
-    from regrasp_drake.throw_catch import watch
+def dataset_flights(data_dir) -> tuple[list, list]:
+    """The data set's training flights: (ObjectSpecs, their free-flight
+    states at free_time_s), one per object in name order (an object's other
+    catch points, <object>@k, share its watched throw)."""
     from regrasp_drake.world.objects import resolve_object
     data_dir = Path(data_dir)
-    # One flight per object: an object's other catch points (<object>@k)
-    # share its watched throw.
     plans = sorted(p for p in (data_dir / "plans").glob("*.json")
                    if "@" not in p.stem)
     objects, states = [], []
@@ -395,6 +387,20 @@ def train_from_dataset(data_dir, scenario, out, *, ik, eval_objects=(),
                              "again)")
         objects.append(resolve_object(name=entry["object"]))
         states.append(np.asarray(entry["free_flight"]["state"], float))
+    return objects, states
+
+
+def train_from_dataset(data_dir, scenario, out, *, ik, eval_objects=(),
+                       ridge: float = 1.0, progress=None) -> dict:
+    """Fits the predictor on the data set's free-flight states (every
+    training object's), writes it to `out`, and reports its
+    leave-one-geometry-out cross-validation and its errors on
+    `eval_objects` (ObjectSpecs never trained on), each watched once to know
+    its true flight: catch position (mm), v_catch (m/s), catch time (ms),
+    axis (degrees), and the offset and axis at the actual catch moment.
+    Also writes the report as <out>.report.json."""
+    from regrasp_drake.throw_catch import watch
+    objects, states = dataset_flights(data_dir)
     if len(objects) < 10:
         raise InputError(f"{data_dir}: {len(objects)} flights, expected at "
                          "least 10 to fit the flight predictor")
