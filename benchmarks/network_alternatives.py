@@ -30,15 +30,17 @@ entry's success map. Predictors:
   test entry (its map's share of catching cells), the floor.
 
 Writes <out>.jsonl (each split's rates as soon as they are known; a rerun
-skips the splits there), <out>.json (per predictor: the mean catch rate over
-the splits, the per-split rates, and the splits where it catches more / as
-many / fewer test entries than the best constant cell) and <out>.png.
+skips the splits there that were made on the same data set), <out>.json
+(per predictor: the mean catch rate over the splits, the per-split rates,
+and the splits where it catches more / as many / fewer test entries than
+the best constant cell) and <out>.png.
 """
 
 # regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
 # (regrasp_drake/numerics.py), so that results match across x86-64 machines.
 import regrasp_drake  # noqa: F401, I001 (first, see above)
 import argparse
+import hashlib
 import json
 import sys
 import tempfile
@@ -149,14 +151,20 @@ def run(seeds, epochs, data_dir=DATA_DIR, progress=None,
         rates["a random cell"] = float(maps[split[2]].mean())
         return rates
 
+    # A split's rates hold for this data set only: a row of another one (the
+    # data set regenerated) is not reused.
+    data_digest = hashlib.sha256(
+        (Path(data_dir) / "samples.csv").read_bytes()
+        + (Path(data_dir) / "maps.npz").read_bytes()).hexdigest()[:16]
+
     def key(row):
-        return row["seed"], row["epochs"]
+        return row["seed"], row["epochs"], row.get("data")
 
     done = read_rows(rows_path, key) if rows_path else {}
     with tempfile.TemporaryDirectory() as tmp:
         for n, seed in enumerate(seeds):
-            if (seed, epochs) not in done:
-                row = {"seed": seed, "epochs": epochs,
+            if (seed, epochs, data_digest) not in done:
+                row = {"seed": seed, "epochs": epochs, "data": data_digest,
                        "rates": split_rates(seed, tmp)}
                 done[key(row)] = row
                 if rows_path:
@@ -166,7 +174,7 @@ def run(seeds, epochs, data_dir=DATA_DIR, progress=None,
                 progress(n + 1, len(seeds))
     rates: dict[str, list] = {}
     for seed in seeds:
-        for name, value in done[(seed, epochs)]["rates"].items():
+        for name, value in done[(seed, epochs, data_digest)]["rates"].items():
             rates.setdefault(name, []).append(value)
     constant = np.array(rates["best constant cell"])
     return {

@@ -420,9 +420,9 @@ def make_parser() -> argparse.ArgumentParser:
                    metavar="N", help="parallel objects (default: all cores)")
     p.add_argument("--backend", choices=("process", "ray"), default="process",
                    help="local processes, or Ray (RAY_ADDRESS, else local)")
-    p.add_argument("--catch-points", type=int, default=2, metavar="K",
+    p.add_argument("--catch-points", type=int, default=4, metavar="K",
                    help="catch points per object, each with its own map and "
-                        "label (default 2)")
+                        "label (default 4)")
     p.add_argument("--out", type=Path, metavar="DIR",
                    help="output directory (default models/dataset)")
     p.set_defaults(func=_cmd_dataset)
