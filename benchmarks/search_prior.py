@@ -17,8 +17,8 @@ the map prior with every map weighing alike ("map-prior-uniform").
 
 1. Leave-one-object-out on the training maps (models/dataset/maps.npz): each
    entry whose map catches somewhere is held out with every entry of its
-   object (both catch points) removed from the map prior, and searched from
-   - the cell (7, 2) (the network's cell for table1 rows 1-3),
+   object (every catch point) removed from the map prior, and searched from
+   - the cell (7, 2) (a fixed start, kept from the first evaluations),
    - its own label cell (learning/dataset.py's most robust catching cell: a
      catching cell by definition, so both searches need 1 cell; listed as
      the brief asked, a check rather than a comparison),
