@@ -58,7 +58,8 @@ same maps (see it), so the figures are slightly optimistic. On the stored
 Table 1 maps, from the network's cells, table1-row4 takes 14 cells
 (wavefront 50, the kernel of width 0.75 2) and the other rows 1 with every
 search; `regrasp-drake table1 --search map-prior` gave the same throws
-(models/results/table1_prior.json).
+(row 4's 15 with --max-throws 40; models/results/table1_prior.json, made
+with --max-throws 12, stops it at 12).
 The other modes: README, "Table 1, held-out objects, noise".
 """
 

@@ -359,9 +359,12 @@ def _is_a(value, kind) -> bool:
     return isinstance(value, kind)
 
 
-def _type_name(kind) -> str:
+def _type_name(kind, plural: bool = False) -> str:
+    """'a number', 'a list of numbers', 'a list of lists of numbers', …"""
     if typing.get_origin(kind) is list:
         (inner,) = typing.get_args(kind)
-        return f"a list of {_type_name(inner).removeprefix('a ')}s"
-    return {float: "a number", int: "an integer", str: "a string",
-            bool: "true or false"}.get(kind, str(kind))
+        return (("lists" if plural else "a list") + " of "
+                + _type_name(inner, plural=True))
+    names = {float: ("a number", "numbers"), int: ("an integer", "integers"),
+             str: ("a string", "strings"), bool: ("true or false", "booleans")}
+    return names.get(kind, (str(kind), str(kind)))[plural]
