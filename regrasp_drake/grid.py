@@ -155,8 +155,55 @@ def print_progress(n, total, start, label="", unit="cells"):
           f"{left:.0f} s left", end="", file=sys.stderr, flush=True)
 
 
+# How a cell's episode ended (`ending`), from its outcome, the grasp
+# monitor's drop reason and the bodies the object touches at the end
+# (episode.read_ending): the hand's fingers are its *_proximal and *_distal
+# links (sdf/hand.sdf), the arm's its link1 ... link6 (sdf/puma560.sdf).
+ENDINGS = {
+    "caught": "caught",
+    "in_fingers": "not held: in the fingers, no grasp recognized by the "
+                  "palm sensors or the bumper",
+    "on_arm": "not held: at rest against the arm, no finger touching",
+    "loose": "not held: neither in the fingers nor against the arm",
+    "below_palm": "fell below the palm",
+    "near_ground": "fell near the ground",
+    "failed": "failed: a commanded pose out of the arm's reach (the lowered "
+              "pose, mostly), or a failed contact solve",
+    "other": "a timeout, or a row written without a drop reason",
+}
+
+
+def ending(row: dict) -> str:
+    """The key of ENDINGS that describes a map row."""
+    if row["outcome"] == "caught":
+        return "caught"
+    if row["outcome"] == "failed":
+        return "failed"
+    reason = row.get("drop_reason")
+    if row["outcome"] != "dropped" or reason is None:
+        return "other"
+    if reason != "not_held":
+        return reason
+    touching = row.get("touching") or []
+    if any(b.endswith(("_proximal", "_distal")) for b in touching):
+        return "in_fingers"
+    if any(b.startswith("link") for b in touching):
+        return "on_arm"
+    return "loose"
+
+
+def ending_counts(rows) -> dict:
+    """{ENDINGS key: how many of the rows (an iterable) end so}, every key
+    present."""
+    counts = dict.fromkeys(ENDINGS, 0)
+    for row in rows:
+        counts[ending(row)] += 1
+    return counts
+
+
 def format_map(rows: dict) -> str:
-    """A ✓/✗ grid: rows h_catch (m), columns h_down (cm); ? not yet run."""
+    """A ✓/✗ grid: rows h_catch (m), columns h_down (cm); ? not yet run;
+    then how many cells catch and how the others ended (`ending`)."""
     lines = ["h_catch m \\ h_down cm " + " ".join(f"{d * 100:>3.0f}"
                                                 for d in H_DOWN_VALUES)]
     for i, h_catch in enumerate(H_CATCH_VALUES):
@@ -168,4 +215,8 @@ def format_map(rows: dict) -> str:
         lines.append(f"{h_catch:>20.2f}  " + " ".join(f"{m:>3}" for m in marks))
     caught = sum(r["outcome"] == "caught" for r in rows.values())
     lines.append(f"{caught}/{len(rows)} cells catch")
+    counts = ending_counts(rows.values())
+    for key, n in counts.items():
+        if key != "caught" and n:
+            lines.append(f"  {n:>3} {ENDINGS[key]}")
     return "\n".join(lines)

@@ -37,6 +37,17 @@ class RunCellsTest(Row2Fixture, unittest.TestCase):
             self.assertEqual(row["catch_time_s"], whole.catch_time_s)
             # Bit for bit: the object ends at exactly the same position.
             np.testing.assert_array_equal(row["p_WO_final"], whole.p_WO_final)
+            # How it ended: the monitor's drop reason and the final contacts.
+            self.assertEqual((row["drop_reason"], row["touching"]),
+                             (whole.drop_reason, whole.touching))
+            if row["outcome"] == "caught":
+                self.assertIsNone(row["drop_reason"])
+                self.assertIn("palm", row["touching"])
+                self.assertTrue(any(b.endswith("_distal")
+                                    for b in row["touching"]), row)
+            else:
+                self.assertIn(row["drop_reason"],
+                              ("near_ground", "below_palm", "not_held"))
             outcomes.add(row["outcome"])
         self.assertEqual(outcomes, {"caught", "dropped"})
 

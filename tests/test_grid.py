@@ -6,11 +6,14 @@ import unittest
 from pathlib import Path
 
 from regrasp_drake.grid import (
+    ENDINGS,
     H_CATCH_VALUES,
     H_DOWN_VALUES,
     append_rows,
     cell_parameters,
     cells,
+    ending,
+    ending_counts,
     format_map,
     nearest_cell,
     read_rows,
@@ -76,6 +79,31 @@ class TestGrid(unittest.TestCase):
         self.assertIn("1/2 cells catch", text)
         first_row = text.splitlines()[1].split()
         self.assertEqual(first_row[1:4], ["✓", "✗", "?"])
+        # A row without a drop reason (an older file) is counted as other.
+        self.assertIn("1 a timeout, or a row written without", text)
+
+    def test_endings_from_reason_and_contacts(self):
+        def row(outcome, reason=None, touching=()):
+            return {"outcome": outcome, "drop_reason": reason,
+                    "touching": list(touching)}
+        cases = [
+            (row("caught", touching=["palm", "index_distal"]), "caught"),
+            (row("dropped", "not_held", ["palm", "thumb_proximal"]),
+             "in_fingers"),
+            (row("dropped", "not_held", ["link4", "palm"]), "on_arm"),
+            (row("dropped", "not_held", ["palm"]), "loose"),
+            (row("dropped", "below_palm"), "below_palm"),
+            (row("dropped", "near_ground", ["world"]), "near_ground"),
+            (row("failed"), "failed"),
+            (row("timeout"), "other"),
+        ]
+        for r, expected in cases:
+            self.assertEqual(ending(r), expected, r)
+        counts = ending_counts(r for r, _ in cases)
+        self.assertEqual(set(counts), set(ENDINGS))
+        self.assertEqual(sum(counts.values()), len(cases))
+        text = format_map({(0, j): r for j, (r, _) in enumerate(cases)})
+        self.assertIn("1 not held: at rest against the arm", text)
 
 
 if __name__ == "__main__":

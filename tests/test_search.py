@@ -294,6 +294,14 @@ class TestMapPriorOrder(unittest.TestCase):
         np.testing.assert_allclose(edge[0], edge[0, 0])
         self.assertTrue(np.all((edge >= 0) & (edge <= 1)))
         np.testing.assert_array_equal(smooth(caught, 0), caught)
+        # A pair smooths each axis by its own width: (s, s) is s, and a 0
+        # leaves that axis alone.
+        np.testing.assert_array_equal(smooth(caught, (0.7, 0.7)),
+                                      smooth(caught, 0.7))
+        along_catch = smooth(caught, (0.7, 0.0))
+        self.assertTrue(np.all(along_catch[:, [6, 8]] == 0))
+        self.assertGreater(along_catch[5, 7], 0.0)
+        np.testing.assert_array_equal(smooth(caught, (0, 0)), caught)
 
 
 class TestPriorMapsFile(unittest.TestCase):

@@ -51,7 +51,7 @@ from pydrake.math import RigidTransform
 
 from regrasp_drake import __version__
 from regrasp_drake.errors import InputError, field_error
-from regrasp_drake.grid import cell_parameters, nearest_cell
+from regrasp_drake.grid import cell_parameters, ending, nearest_cell
 from regrasp_drake.learning import library as lib
 from regrasp_drake.learning.flight_predictor import flight_from_release
 from regrasp_drake.learning.search import (
@@ -180,13 +180,17 @@ class Attempt:
     sim_time_s: float   # simulated time of the throw, [s]
     wall_s: float       # wall time of the throw, [s]
     message: str        # a failed episode's reason
+    # How a throw that did not catch ended (grid.ending: in_fingers, on_arm,
+    # loose, below_palm, near_ground, failed, other), None when caught.
+    ending: str | None = None
 
     def as_dict(self) -> dict:
         return {"throw": self.throw, "cell": list(self.cell),
                 "h_catch": self.h_catch, "h_down": self.h_down,
                 "outcome": self.outcome,
                 "sim_time_s": round(self.sim_time_s, 4),
-                "wall_s": round(self.wall_s, 3), "message": self.message}
+                "wall_s": round(self.wall_s, 3), "message": self.message,
+                "ending": self.ending}
 
 
 @dc.dataclass
@@ -410,10 +414,14 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
         attempts.append(Attempt(throw=throws, cell=cell, h_catch=h_catch,
                                 h_down=h_down, outcome=result.outcome,
                                 sim_time_s=result.sim_time_s,
-                                wall_s=result.wall_s, message=result.message))
+                                wall_s=result.wall_s, message=result.message,
+                                ending=(None if result.caught
+                                        else ending(result.summary()))))
+        how = "" if result.caught else f" ({attempts[-1].ending})"
         report(f"throw {throws}: cell {cell} (h_catch {h_catch:.2f} m, h_down "
-               f"{h_down:.2f} m): {result.outcome}, {result.sim_time_s:.2f} s "
-               f"simulated, {result.wall_s:.1f} s wall")
+               f"{h_down:.2f} m): {result.outcome}{how}, "
+               f"{result.sim_time_s:.2f} s simulated, {result.wall_s:.1f} s "
+               "wall")
         if result.caught:
             stopped = "caught"
             break

@@ -187,19 +187,24 @@ def feature_weights(features, prior_features,
     return np.exp(-(d2 - d2.min()) / (2 * sigma ** 2))
 
 
-def smooth(maps: np.ndarray, sigma_cells: float = SIGMA_CELLS) -> np.ndarray:
+def smooth(maps: np.ndarray, sigma_cells=SIGMA_CELLS) -> np.ndarray:
     """Each map (..., 10, 15) convolved with a Gaussian of sigma_cells
-    (cells) along both axes, radius SMOOTHING_RADIUS cells, the edge cells
-    repeated outwards; the kernel sums to 1, so values stay in [0, 1]. A
-    sigma of 0 returns the maps as floats."""
+    (cells) along both axes (or a pair: along h_catch, along h_down),
+    radius SMOOTHING_RADIUS cells, the edge cells repeated outwards; the
+    kernel sums to 1, so values stay in [0, 1]. A sigma of 0 leaves that
+    axis as it is; the maps come back as floats."""
     out = np.asarray(maps, float)
-    if sigma_cells == 0:
+    sigmas = (tuple(sigma_cells) if np.ndim(sigma_cells)
+              else (sigma_cells, sigma_cells))
+    if not any(sigmas):
         return out.copy()
     r = SMOOTHING_RADIUS
     x = np.arange(-r, r + 1)
-    kernel = np.exp(-x ** 2 / (2 * sigma_cells ** 2))
-    kernel /= kernel.sum()
-    for axis in (-2, -1):
+    for axis, sigma in zip((-2, -1), sigmas):
+        if sigma == 0:
+            continue
+        kernel = np.exp(-x ** 2 / (2 * sigma ** 2))
+        kernel /= kernel.sum()
         n = out.shape[axis]
         pad = [(0, 0)] * out.ndim
         pad[axis] = (r, r)

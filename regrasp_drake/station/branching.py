@@ -28,7 +28,11 @@ import time
 import numpy as np
 
 from regrasp_drake.station.catch_state_machine import Phase
-from regrasp_drake.station.episode import advance_to_outcome, read_outcome
+from regrasp_drake.station.episode import (
+    advance_to_outcome,
+    read_ending,
+    read_outcome,
+)
 from regrasp_drake.station.station import (
     build_station,
     continue_with,
@@ -43,8 +47,9 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
     Returns one dict per entry, in order: h_catch, h_down, outcome,
     sim_time_s, catch_time_s, message, wall_s (the child's wall time, or the
     shared run's for cells that never triggered), p_WO_final (the object's
-    final position, m). `on_result(i, row)` is
-    called as each cell finishes. At most `workers` children run at once.
+    final position, m), drop_reason and touching (episode.read_ending).
+    `on_result(i, row)` is called as each cell finishes. At most `workers`
+    children run at once.
     `handoff`: (t_s, other scenario), to simulate up to t_s under `scenario`
     and from there under the other (benchmarks/timestep_study.py: the same
     throw, caught at another plant time step); t_s must come before any
@@ -93,7 +98,8 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
             message = "the simulation process died"
             results = [dict(outcome="failed", sim_time_s=None,
                             catch_time_s=None, message=message, wall_s=None,
-                            p_WO_final=None) for _ in indices]
+                            p_WO_final=None, drop_reason=None, touching=None)
+                       for _ in indices]
         else:
             results = pickle.loads(data)
         for i, result in zip(indices, results):
@@ -154,7 +160,8 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
         shared = dict(outcome=outcome, sim_time_s=round(context.get_time(), 4),
                       catch_time_s=grasp_t, message=message,
                       wall_s=round(time.perf_counter() - t0, 3),
-                      p_WO_final=_object_position(station, context))
+                      p_WO_final=_object_position(station, context),
+                      **read_ending(station, context, outcome))
         for i, (h, d) in enumerate(parameters):
             if h in waiting:
                 rows[i] = {"h_catch": h, "h_down": d} | shared
@@ -176,7 +183,8 @@ def _run_child(simulator, station, scenario, source, source_context,
     return dict(outcome=outcome, sim_time_s=round(context.get_time(), 4),
                 catch_time_s=grasp_t, message=message,
                 wall_s=round(time.perf_counter() - t0, 3),
-                p_WO_final=_object_position(station, context))
+                p_WO_final=_object_position(station, context),
+                **read_ending(station, context, outcome))
 
 
 def _object_position(station, context) -> list:

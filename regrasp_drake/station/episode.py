@@ -40,6 +40,10 @@ class EpisodeResult:
     message: str
     logs: Logs | None
     p_WO_final: list | None = None  # the object's final position, [m]
+    # Why a dropped episode counts as dropped (DropReason, lower case), and
+    # the bodies the object touches at the end (`read_ending`).
+    drop_reason: str | None = None
+    touching: list | None = None
 
     @property
     def caught(self) -> bool:
@@ -52,6 +56,7 @@ class EpisodeResult:
             "h_down": self.h_down, "sim_time_s": round(self.sim_time_s, 4),
             "wall_s": round(self.wall_s, 3),
             "catch_time_s": self.catch_time_s, "message": self.message,
+            "drop_reason": self.drop_reason, "touching": self.touching,
         }
 
 
@@ -103,7 +108,8 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
         catch_time_s=grasp_t, message=message, logs=logs,
         p_WO_final=station.plant.EvalBodyPoseInWorld(
             station.plant.GetMyContextFromRoot(context),
-            station.object_body).translation().tolist())
+            station.object_body).translation().tolist(),
+        **read_ending(station, context, outcome))
 
 
 def release_time(scenario: Scenario) -> float:
@@ -160,6 +166,32 @@ def read_outcome(station, context, message: str) -> tuple[str, float | None]:
         monitor_state).name.lower()
     grasp_t = GraspMonitor.grasp_time(monitor_state)
     return outcome, (grasp_t if grasp_t >= 0 else None)
+
+
+def read_ending(station, context, outcome: str) -> dict:
+    """How the episode ended, beyond its outcome: `drop_reason`, which of
+    the grasp monitor's tests made it dropped ("near_ground", "below_palm",
+    "not_held"; None unless dropped), and `touching`, the names of the
+    bodies in contact with the object in the final state, sorted (the
+    plant's contact results: a held object touches fingers and the palm;
+    one that came to rest on the palm against the arm touches the palm and
+    an arm link). Reading them does not change the simulation."""
+    reason = None
+    if outcome == "dropped":
+        monitor_state = station.monitor.GetOutputPort("monitor_state").Eval(
+            station.monitor.GetMyContextFromRoot(context))
+        reason = GraspMonitor.drop_reason(monitor_state).name.lower()
+    plant = station.plant
+    results = plant.get_contact_results_output_port().Eval(
+        plant.GetMyContextFromRoot(context))
+    me = station.object_body.index()
+    touching = set()
+    for i in range(results.num_point_pair_contacts()):
+        info = results.point_pair_contact_info(i)
+        a, b = info.bodyA_index(), info.bodyB_index()
+        if me in (a, b):
+            touching.add(plant.get_body(b if a == me else a).name())
+    return {"drop_reason": reason, "touching": sorted(touching)}
 
 
 def _read_logs(station, context) -> Logs:

@@ -7,7 +7,7 @@ window. The episode's outcome:
            recognized again) `hold_s` after the hand is back at the grasp
            position;
   dropped  the object fell below the palm, neared the ground, or was not held
-           at the end of the hold;
+           at the end of the hold (which of the three: `DropReason`);
   timeout  nothing decided by `max_time_s`;
   landed   (watching throws only) the object neared the ground.
 The simulator stops as soon as the outcome is known: the periodic update
@@ -32,8 +32,16 @@ class Outcome(enum.IntEnum):
     LANDED = 4
 
 
+class DropReason(enum.IntEnum):
+    """Which test of the monitor ended an episode as dropped."""
+    NONE = 0         # not dropped
+    NEAR_GROUND = 1  # the object's origin neared the ground
+    BELOW_PALM = 2   # it fell below the palm's plane (LOWER and after)
+    NOT_HELD = 3     # at the end of the hold, no grasp was recognized
+
+
 # Discrete state layout.
-_OUTCOME, _IR_SINCE, _BUMPER_SINCE, _GRASP_T, _HOLD_T = range(5)
+_OUTCOME, _IR_SINCE, _BUMPER_SINCE, _GRASP_T, _HOLD_T, _REASON = range(6)
 
 
 class GraspMonitor(LeafSystem):
@@ -59,7 +67,8 @@ class GraspMonitor(LeafSystem):
         self._phase = self.DeclareVectorInputPort("phase", 1)
         self._poses = self.DeclareAbstractInputPort(
             "body_poses", AbstractValue.Make([RigidTransform()]))
-        x0 = np.array([Outcome.RUNNING, -1.0, -1.0, -1.0, -1.0])
+        x0 = np.array([Outcome.RUNNING, -1.0, -1.0, -1.0, -1.0,
+                       DropReason.NONE])
         self._state = self.DeclareDiscreteState(x0)
         self.DeclarePeriodicDiscreteUpdateEvent(
             scenario.sensors.period_s, 0.0, self._update)
@@ -86,22 +95,24 @@ class GraspMonitor(LeafSystem):
         if phase == Phase.HOLD and x[_HOLD_T] < 0:
             x[_HOLD_T] = t
 
-        outcome = Outcome.RUNNING
+        outcome, reason = Outcome.RUNNING, DropReason.NONE
         near_ground = p_WO[2] < self._ground_z
         if self._watching:
             if near_ground:
                 outcome = Outcome.LANDED
         elif near_ground:
-            outcome = Outcome.DROPPED
+            outcome, reason = Outcome.DROPPED, DropReason.NEAR_GROUND
         elif phase >= Phase.LOWER and (
                 X_WP.inverse() @ p_WO)[2] < -m.below_palm_m:
-            outcome = Outcome.DROPPED
+            outcome, reason = Outcome.DROPPED, DropReason.BELOW_PALM
         elif x[_HOLD_T] >= 0 and t - x[_HOLD_T] >= m.hold_s:
             held = x[_GRASP_T] >= 0 and (ir_grasp or bumper)
-            outcome = Outcome.CAUGHT if held else Outcome.DROPPED
+            outcome, reason = ((Outcome.CAUGHT, DropReason.NONE) if held else
+                               (Outcome.DROPPED, DropReason.NOT_HELD))
         if outcome == Outcome.RUNNING and t >= m.max_time_s:
             outcome = Outcome.TIMEOUT
         x[_OUTCOME] = outcome
+        x[_REASON] = reason
         discrete_state.set_value(self._state, x)
         if outcome != Outcome.RUNNING:
             return EventStatus.ReachedTermination(self, outcome.name.lower())
@@ -110,6 +121,10 @@ class GraspMonitor(LeafSystem):
     @staticmethod
     def outcome(monitor_state) -> Outcome:
         return Outcome(int(monitor_state[_OUTCOME]))
+
+    @staticmethod
+    def drop_reason(monitor_state) -> DropReason:
+        return DropReason(int(monitor_state[_REASON]))
 
     @staticmethod
     def grasp_time(monitor_state) -> float:
