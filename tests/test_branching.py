@@ -1,12 +1,13 @@
 """Forked cells give the same episodes as whole runs."""
 
 import unittest
+from unittest import mock
 
 import numpy as np
 
 from regrasp_drake.grid import plan_object
 from regrasp_drake.station.branching import run_cells
-from regrasp_drake.station.episode import run_episode
+from regrasp_drake.station.episode import read_ending, run_episode
 from tests.fixtures import Row2Fixture
 
 
@@ -71,6 +72,17 @@ class RunCellsTest(Row2Fixture, unittest.TestCase):
             run_cells(self.scenario, self.obj, ik=self.ik,
                       X_WG=self.plan.X_WG, parameters=[(0.2, -0.05)],
                       handoff=(1.3, self.scenario))
+
+
+class ReadEndingTest(unittest.TestCase):
+    def test_contacts_that_cannot_be_computed_read_none(self):
+        # After a failed contact solve, evaluating the contact results
+        # fails again: the ending has no contacts instead of raising.
+        station = mock.Mock()
+        station.plant.get_contact_results_output_port.return_value \
+            .Eval.side_effect = RuntimeError("contact solver failed")
+        self.assertEqual(read_ending(station, mock.Mock(), "failed"),
+                         {"drop_reason": None, "touching": None})
 
 
 if __name__ == "__main__":

@@ -175,15 +175,19 @@ def read_ending(station, context, outcome: str) -> dict:
     bodies in contact with the object in the final state, sorted (the
     plant's contact results: a held object touches fingers and the palm;
     one that came to rest on the palm against the arm touches the palm and
-    an arm link). Reading them does not change the simulation."""
+    an arm link; None when they cannot be computed, as after a failed
+    contact solve). Reading them does not change the simulation."""
     reason = None
     if outcome == "dropped":
         monitor_state = station.monitor.GetOutputPort("monitor_state").Eval(
             station.monitor.GetMyContextFromRoot(context))
         reason = GraspMonitor.drop_reason(monitor_state).name.lower()
     plant = station.plant
-    results = plant.get_contact_results_output_port().Eval(
-        plant.GetMyContextFromRoot(context))
+    try:
+        results = plant.get_contact_results_output_port().Eval(
+            plant.GetMyContextFromRoot(context))
+    except Exception:  # the solve that ended the episode fails again
+        return {"drop_reason": reason, "touching": None}
     me = station.object_body.index()
     touching = set()
     for i in range(results.num_point_pair_contacts()):
