@@ -5,13 +5,15 @@ out of the arm's reach), from the grasp monitor's drop reason and the bodies
 the object touches when the episode ends.
 
     .venv/bin/python benchmarks/failure_modes.py [--objects NAME ...]
-        [--workers N] [--out benchmarks/failure_modes.json]
+        [--workers N] [--scenario F] [--out benchmarks/failure_modes.json]
 
 For each object (default: the five Table 1 objects and three training
 objects whose centre of mass lies 20 mm or more off the grasp piece's axis),
 the watching throw, the catch plan and the 150 cells, as `regrasp-drake
 grid` runs them, written as JSON lines to benchmarks/failure_modes/<object>
-.jsonl as cells finish (a rerun resumes). Each map's outcomes are checked
+.jsonl as cells finish (a rerun resumes; with --scenario F, to
+benchmarks/failure_modes_<F's stem>/ and, by default, to
+benchmarks/failure_modes_<F's stem>.json). Each map's outcomes are checked
 against the stored ones where there are any: models/results/maps/<object>
 .jsonl (Table 1, `regrasp-drake table1`) and models/dataset/maps.npz (a
 training object's first catch point); the JSON says whether they agree cell
@@ -98,7 +100,7 @@ def summarize(name: str, rows: dict, start) -> dict:
             "agrees_with_stored": agree}
 
 
-def plot(results: list, maps: dict, path: Path) -> None:
+def plot(results: list, maps: dict, path: Path, title: str) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -139,7 +141,7 @@ def plot(results: list, maps: dict, path: Path) -> None:
                + [Patch(facecolor="none", edgecolor="gold",
                         label="the network's start cell (Table 1)")],
                loc="lower center", ncol=2, fontsize=8)
-    fig.suptitle("How each cell ends (benchmarks/failure_modes.py)")
+    fig.suptitle(title)
     fig.tight_layout(rect=(0, 0.16 if rows_ == 1 else 0.1, 1, 0.97))
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -151,8 +153,13 @@ def main(argv=None) -> int:
     p.add_argument("--objects", nargs="+", default=list(DEFAULT_OBJECTS),
                    metavar="NAME")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
-    p.add_argument("--out", type=Path, default=HERE.with_suffix(".json"))
+    p.add_argument("--scenario", type=Path, default=None,
+                   help="a scenario YAML file (default: the shipped one)")
+    p.add_argument("--out", type=Path, default=None)
     args = p.parse_args(argv)
+    rows_dir = (HERE if args.scenario is None
+                else HERE.with_name(f"{HERE.name}_{args.scenario.stem}"))
+    out_path = args.out or rows_dir.parent / f"{rows_dir.name}.json"
     if args.workers < 1:
         print(f"failure_modes: error: --workers: {args.workers} (expected a "
               "whole number >= 1)", file=sys.stderr)
@@ -165,17 +172,17 @@ def main(argv=None) -> int:
     torch.set_num_threads(1)
     try:
         objects = [resolve_object(name=name) for name in args.objects]
+        scenario = load_scenario(args.scenario)
     except InputError as e:
         print(f"failure_modes: error: {e}", file=sys.stderr)
         return 2
-    scenario = load_scenario(None)
     ik = ArmIk()
-    HERE.mkdir(exist_ok=True)
+    rows_dir.mkdir(exist_ok=True)
     starts = start_cells()
     results, maps = [], {}
     for obj in objects:
         plan = plan_object(scenario, obj, ik)
-        rows = run_map(scenario, obj, ik, plan, HERE / f"{obj.name}.jsonl",
+        rows = run_map(scenario, obj, ik, plan, rows_dir / f"{obj.name}.jsonl",
                        workers=args.workers)
         maps[obj.name] = rows
         result = summarize(obj.name, rows, starts.get(obj.name))
@@ -185,11 +192,13 @@ def main(argv=None) -> int:
               + f"; start cell: {result['start_cell_ending']}; agrees with "
               f"stored: {result['agrees_with_stored']}", flush=True)
     total = ending_counts(r for m in maps.values() for r in m.values())
-    out = {"objects": results, "total": total}
-    args.out.write_text(json.dumps(out, indent=1) + "\n")
-    png = args.out.with_suffix(".png")
-    plot(results, maps, png)
-    print(f"total: {total}\nwrote {args.out} and {png}")
+    out = {"scenario": None if args.scenario is None else str(args.scenario),
+           "objects": results, "total": total}
+    out_path.write_text(json.dumps(out, indent=1) + "\n")
+    png = out_path.parent / f"{out_path.stem}.png"
+    plot(results, maps, png, "How each cell ends (benchmarks/failure_modes.py"
+         + ("" if args.scenario is None else f", {args.scenario}") + ")")
+    print(f"total: {total}\nwrote {out_path} and {png}")
     return 0
 
 
