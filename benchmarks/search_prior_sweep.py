@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from regrasp_drake.errors import InputError
 from regrasp_drake.grid import read_rows
 from regrasp_drake.learning import search
 from regrasp_drake.learning.dataset import object_of
@@ -55,10 +56,15 @@ def main(argv=None) -> int:
     p.add_argument("--out", type=Path,
                    default=Path(__file__).with_suffix(".json"))
     args = p.parse_args(argv)
-    names, maps = search.load_prior_maps()
     table1_json = MODELS_DIR / "results" / "table1.json"
-    starts = {r["object"]: tuple(r["start_cell"])
-              for r in json.loads(table1_json.read_text())}
+    try:
+        names, maps = search.load_prior_maps()
+        starts = {r["object"]: tuple(r["start_cell"])
+                  for r in json.loads(table1_json.read_text())}
+    except (InputError, OSError, ValueError, KeyError, TypeError) as e:
+        print(f"search_prior_sweep: error: {e} (expected the shipped "
+              f"models/dataset/maps.npz and {table1_json})", file=sys.stderr)
+        return 2
     table1 = {}
     for name in sorted(starts):
         rows = read_rows(MODELS_DIR / "results" / "maps" / f"{name}.jsonl")
