@@ -2,6 +2,8 @@
 their committed figures follow from their committed rows and stored maps
 (no simulation)."""
 
+import contextlib
+import io
 import json
 import tempfile
 import unittest
@@ -56,7 +58,8 @@ class StoredMapStudiesTest(unittest.TestCase):
     def _rerun(self, module, name):
         with tempfile.TemporaryDirectory() as tmp:
             out = Path(tmp) / "out.json"
-            self.assertEqual(module.main(["--out", str(out)]), 0)
+            with contextlib.redirect_stdout(io.StringIO()):
+                self.assertEqual(module.main(["--out", str(out)]), 0)
             return (json.loads(out.read_text()),
                     json.loads((BENCHMARKS / f"{name}.json").read_text()))
 
