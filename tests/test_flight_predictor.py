@@ -6,6 +6,8 @@ import unittest
 from pathlib import Path
 
 import numpy as np
+from pydrake.common.eigen_geometry import Quaternion
+from pydrake.math import RollPitchYaw, RotationMatrix
 
 from regrasp_drake.errors import InputError
 from regrasp_drake.learning.flight_predictor import (
@@ -14,6 +16,7 @@ from regrasp_drake.learning.flight_predictor import (
     flight_from_release,
     free_time_s,
     object_inputs,
+    state_errors,
 )
 from regrasp_drake.learning.learning_phase import NoCatchPoint, learn
 from regrasp_drake.paths import MODELS_DIR
@@ -90,6 +93,26 @@ class PredictorTest(unittest.TestCase):
         obj = self.catalogue["table1-row1"]
         np.testing.assert_allclose(v_Cm(obj, predictor.predict_state(obj)),
                                    mean, atol=1e-6)
+
+    def test_state_errors_by_component(self):
+        obj = self.catalogue["table1-row4"]
+        state = self.predictor.predict_state(obj)
+        zero = state_errors(obj, state, state)
+        self.assertEqual(set(zero.values()), {0.0})
+        # Turned 30 degrees about the vertical through the object's origin,
+        # moved 10 mm up and spinning 1 rad/s faster about x.
+        other = state.copy()
+        R = RotationMatrix(RollPitchYaw(0, 0, np.radians(30))) @ RotationMatrix(
+            Quaternion(state[:4] / np.linalg.norm(state[:4])))
+        other[:4] = R.ToQuaternion().wxyz()
+        other[6] += 0.010
+        other[7] += 1.0
+        e = state_errors(obj, other, state)
+        self.assertAlmostEqual(e["release_orientation_deg"], 30.0, places=1)
+        self.assertLessEqual(e["release_axis_deg"], 30.01)
+        self.assertAlmostEqual(e["release_spin_rad_per_s"], 1.0, places=2)
+        # The centre of mass moves with the turn unless it is on the origin.
+        self.assertGreaterEqual(e["release_position_mm"], 9.9)
 
     def test_round_trip_through_json(self):
         with tempfile.TemporaryDirectory() as d:

@@ -302,6 +302,29 @@ def flight_errors(predicted_plan, actual_plan, predicted_flight=None,
     return out
 
 
+def state_errors(obj, predicted_state, actual_state) -> dict:
+    """How far a predicted free-flight state (13, as logged) is from the
+    actual one, component by component: the centre of mass's position (mm)
+    and velocity (m/s), the object's axis y_O (deg) and whole orientation
+    (deg, the angle of the rotation between them), and the angular velocity
+    (rad/s, the norm of the difference, in W). The catch plan's errors
+    (flight_errors) follow from these through the free flight."""
+    out = {}
+    R_p, R_a = _R(predicted_state[:4]), _R(actual_state[:4])
+    t_p, t_a = _targets(obj, predicted_state, R_a), _targets(obj, actual_state, R_a)
+    out["release_position_mm"] = round(
+        1000 * float(np.linalg.norm(t_p[0:3] - t_a[0:3])), 1)
+    out["release_velocity_m_per_s"] = round(
+        float(np.linalg.norm(t_p[3:6] - t_a[3:6])), 3)
+    out["release_axis_deg"] = round(_angle_deg(R_p.matrix()[:, 1],
+                                               R_a.matrix()[:, 1]), 2)
+    out["release_orientation_deg"] = round(math.degrees(
+        (R_p @ R_a.inverse()).ToAngleAxis().angle()), 2)
+    out["release_spin_rad_per_s"] = round(float(np.linalg.norm(
+        np.asarray(predicted_state[7:10]) - actual_state[7:10])), 2)
+    return out
+
+
 def _angle_deg(a, b) -> float:
     return math.degrees(math.acos(min(1.0, abs(float(np.asarray(a) @ b)))))
 
@@ -349,6 +372,7 @@ def cross_validate(objects, states, scenario, ik, *, ridge: float = 1.0,
             actual = _as_watched(*_flight(state, t0, obj, scenario))
             row = {"object": obj.name, "geometry": geometry} | _compare(
                 scenario, obj, ik, predictor.as_watched(obj, scenario), actual)
+            row |= state_errors(obj, predictor.predict_state(obj), state)
             rows.append(row)
             if progress is not None:
                 print(f"cv {obj.name}: {row}", file=progress, flush=True)
@@ -360,7 +384,9 @@ def summarize(rows) -> dict:
     many rows had a reachable plan on both flights."""
     planned = [r for r in rows if "error" not in r]
     keys = ("position_mm", "axis_deg", "v_catch_m_per_s", "time_ms",
-            "offset_at_catch_mm", "axis_at_catch_deg")
+            "offset_at_catch_mm", "axis_at_catch_deg", "release_position_mm",
+            "release_velocity_m_per_s", "release_axis_deg",
+            "release_orientation_deg", "release_spin_rad_per_s")
     out = {"objects": len(rows), "planned": len(planned)}
     for k in keys:
         values = [r[k] for r in planned if k in r]
@@ -397,8 +423,10 @@ def train_from_dataset(data_dir, scenario, out, *, ik, eval_objects=(),
     leave-one-geometry-out cross-validation and its errors on
     `eval_objects` (ObjectSpecs never trained on), each watched once to know
     its true flight: catch position (mm), v_catch (m/s), catch time (ms),
-    axis (degrees), and the offset and axis at the actual catch moment.
-    Also writes the report as <out>.report.json."""
+    axis (degrees), and the offset and axis at the actual catch moment;
+    and, for both, the predicted state after the throw against the actual
+    one (state_errors, the release_* fields). Also writes the report as
+    <out>.report.json."""
     from regrasp_drake.throw_catch import watch
     objects, states = dataset_flights(data_dir)
     if len(objects) < 10:
@@ -411,10 +439,15 @@ def train_from_dataset(data_dir, scenario, out, *, ik, eval_objects=(),
     cv_rows = cross_validate(objects, states, scenario, ik, ridge=ridge,
                              progress=progress)
     rows = []
+    t0 = free_time_s(scenario)
     for obj in eval_objects:
+        watched = watch(scenario, obj, ik)
         row = {"object": obj.name, "set": obj.set} | _compare(
-            scenario, obj, ik, predictor.as_watched(obj, scenario),
-            watch(scenario, obj, ik))
+            scenario, obj, ik, predictor.as_watched(obj, scenario), watched)
+        k = int(np.argmin(np.abs(watched.logs.t - t0)))
+        if abs(watched.logs.t[k] - t0) < 1e-9:  # a flight logged then
+            row |= state_errors(obj, predictor.predict_state(obj),
+                                watched.logs.object_state[:, k])
         rows.append(row)
         if progress is not None:
             print(f"{obj.name}: {row}", file=progress, flush=True)
