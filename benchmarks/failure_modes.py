@@ -58,19 +58,24 @@ COLOURS = {"caught": "#2ca02c", "in_fingers": "#9467bd", "on_arm": "#d62728",
            "near_ground": "#17becf", "failed": "#8c564b", "other": "#7f7f7f"}
 
 
+def _shown(path: Path) -> str:
+    """A stored file's path, relative to the repository."""
+    return str(path.relative_to(MODELS_DIR.parent))
+
+
 def stored_outcomes(name: str) -> dict:
     """{source: {cell: caught?}} of the stored maps of `name`."""
     out = {}
     table1_map = MODELS_DIR / "results" / "maps" / f"{name}.jsonl"
     if table1_map.is_file():
-        out[str(table1_map)] = {c: r["outcome"] == "caught"
+        out[_shown(table1_map)] = {c: r["outcome"] == "caught"
                                 for c, r in read_rows(table1_map).items()}
     maps = MODELS_DIR / "dataset" / "maps.npz"
     with np.load(maps, allow_pickle=False) as data:
         names = [str(n) for n in data["objects"]]
         if name in names:
             caught = data["caught"][names.index(name)]
-            out[str(maps)] = {(i, j): bool(caught[i, j])
+            out[_shown(maps)] = {(i, j): bool(caught[i, j])
                               for i in range(caught.shape[0])
                               for j in range(caught.shape[1])}
     return out
