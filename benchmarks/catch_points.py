@@ -101,6 +101,10 @@ def main(argv=None) -> int:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", type=Path, default=HERE.with_suffix(".json"))
     args = p.parse_args(argv)
+    if not args.out.parent.is_dir():
+        print(f"catch_points: error: --out: {args.out} (expected a file in an "
+              "existing directory)", file=sys.stderr)
+        return 2
     if not (HERE / "cells").is_dir():
         print(f"catch_points: error: {HERE / 'cells'}: no such directory, "
               "expected the Table 1 maps of the module's docstring",

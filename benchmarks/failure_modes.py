@@ -165,6 +165,10 @@ def main(argv=None) -> int:
     rows_dir = (HERE if args.scenario is None
                 else HERE.with_name(f"{HERE.name}_{args.scenario.stem}"))
     out_path = args.out or rows_dir.parent / f"{rows_dir.name}.json"
+    if not out_path.parent.is_dir():
+        print(f"failure_modes: error: --out: {out_path} (expected a file in "
+              "an existing directory)", file=sys.stderr)
+        return 2
     if args.workers < 1:
         print(f"failure_modes: error: --workers: {args.workers} (expected a "
               "whole number >= 1)", file=sys.stderr)

@@ -56,6 +56,10 @@ def main(argv=None) -> int:
     p.add_argument("--out", type=Path,
                    default=Path(__file__).with_suffix(".json"))
     args = p.parse_args(argv)
+    if not args.out.parent.is_dir():
+        print(f"search_prior_sweep: error: --out: {args.out} (expected a file in an "
+              "existing directory)", file=sys.stderr)
+        return 2
     table1_json = MODELS_DIR / "results" / "table1.json"
     try:
         names, maps = search.load_prior_maps()
