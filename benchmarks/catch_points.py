@@ -33,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+from regrasp_drake.errors import InputError, check_output_path
 from regrasp_drake.grid import read_rows
 from regrasp_drake.paths import MODELS_DIR
 
@@ -101,9 +102,10 @@ def main(argv=None) -> int:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", type=Path, default=HERE.with_suffix(".json"))
     args = p.parse_args(argv)
-    if not args.out.parent.is_dir():
-        print(f"catch_points: error: --out: {args.out} (expected a file in an "
-              "existing directory)", file=sys.stderr)
+    try:
+        check_output_path("--out", args.out)
+    except InputError as e:
+        print(f"catch_points: error: {e}", file=sys.stderr)
         return 2
     if not (HERE / "cells").is_dir():
         print(f"catch_points: error: {HERE / 'cells'}: no such directory, "

@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from regrasp_drake.errors import InputError
+from regrasp_drake.errors import InputError, check_output_path
 from regrasp_drake.grid import (
     ENDINGS,
     H_CATCH_VALUES,
@@ -165,9 +165,10 @@ def main(argv=None) -> int:
     rows_dir = (HERE if args.scenario is None
                 else HERE.with_name(f"{HERE.name}_{args.scenario.stem}"))
     out_path = args.out or rows_dir.parent / f"{rows_dir.name}.json"
-    if not out_path.parent.is_dir():
-        print(f"failure_modes: error: --out: {out_path} (expected a file in "
-              "an existing directory)", file=sys.stderr)
+    try:
+        check_output_path("--out", out_path)
+    except InputError as e:
+        print(f"failure_modes: error: {e}", file=sys.stderr)
         return 2
     if args.workers < 1:
         print(f"failure_modes: error: --workers: {args.workers} (expected a "

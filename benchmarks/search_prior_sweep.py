@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from regrasp_drake.errors import InputError
+from regrasp_drake.errors import InputError, check_output_path
 from regrasp_drake.grid import read_rows
 from regrasp_drake.learning import search
 from regrasp_drake.learning.dataset import object_of
@@ -56,9 +56,10 @@ def main(argv=None) -> int:
     p.add_argument("--out", type=Path,
                    default=Path(__file__).with_suffix(".json"))
     args = p.parse_args(argv)
-    if not args.out.parent.is_dir():
-        print(f"search_prior_sweep: error: --out: {args.out} (expected a file in an "
-              "existing directory)", file=sys.stderr)
+    try:
+        check_output_path("--out", args.out)
+    except InputError as e:
+        print(f"search_prior_sweep: error: {e}", file=sys.stderr)
         return 2
     table1_json = MODELS_DIR / "results" / "table1.json"
     try:

@@ -10,7 +10,7 @@ import sys
 import time
 from pathlib import Path
 
-from regrasp_drake.errors import InputError
+from regrasp_drake.errors import InputError, check_output_path
 
 
 def _add_object_args(p: argparse.ArgumentParser) -> None:
@@ -493,28 +493,9 @@ def _check_outputs(args) -> None:
                 or (name == "library" and args.command == "apply")
                 or (name == "maps_dir" and args.no_maps)):
             continue
-        flag = "--" + name.replace("_", "-")
-        made = name in _OUTPUT_DIRS or (name == "out"
-                                        and args.command == "dataset")
-        if made:
-            if path.exists() and not path.is_dir():
-                raise InputError(f"{flag}: got {str(path)!r}, expected a "
-                                 "directory (it is a file)")
-            directory = path
-            while not directory.exists():
-                directory = directory.parent
-        else:
-            if path.is_dir():
-                raise InputError(f"{flag}: got {str(path)!r}, expected a "
-                                 "file path (it is a directory)")
-            directory = path.parent
-            if not directory.is_dir():
-                raise InputError(f"{flag}: got {str(path)!r}, expected a "
-                                 "path in an existing directory")
-        if not directory.is_dir() or not os.access(directory, os.W_OK):
-            raise InputError(f"{flag}: got {str(path)!r}, expected a path "
-                             f"under a writable directory ({str(directory)!r}"
-                             " is not one)")
+        check_output_path("--" + name.replace("_", "-"), path,
+                          makes_directory=name in _OUTPUT_DIRS or (
+                              name == "out" and args.command == "dataset"))
 
 
 def main(argv=None) -> int:

@@ -157,8 +157,7 @@ def print_progress(n, total, start, label="", unit="cells"):
 
 # How a cell's episode ended (`ending`), from its outcome, the grasp
 # monitor's drop reason and the bodies the object touches at the end
-# (episode.read_ending): the hand's fingers are its *_proximal and *_distal
-# links (sdf/hand.sdf), the arm's its link1 ... link6 (sdf/puma560.sdf).
+# (episode.read_ending; the finger and arm bodies of world/robot.py).
 ENDINGS = {
     "caught": "caught",
     "in_fingers": "not held: in the fingers, no grasp recognized by the "
@@ -184,10 +183,11 @@ def ending(row: dict) -> str:
         return "other"
     if reason != "not_held":
         return reason
-    touching = row.get("touching") or []
-    if any(b.endswith(("_proximal", "_distal")) for b in touching):
+    from regrasp_drake.world.robot import ARM_LINKS, FINGER_LINKS
+    touching = set(row.get("touching") or ())
+    if touching & {b for links in FINGER_LINKS.values() for b in links}:
         return "in_fingers"
-    if any(b.startswith("link") for b in touching):
+    if touching & set(ARM_LINKS):
         return "on_arm"
     return "loose"
 

@@ -63,6 +63,15 @@ class StoredMapStudiesTest(unittest.TestCase):
             return (json.loads(out.read_text()),
                     json.loads((BENCHMARKS / f"{name}.json").read_text()))
 
+    def test_output_in_a_missing_directory_refused_before_any_work(self):
+        for module in (failure_modes, catch_points, search_prior_sweep):
+            err = io.StringIO()
+            with contextlib.redirect_stderr(err):
+                code = module.main(["--out", "/nonexistent-dir/out.json"])
+            self.assertEqual(code, 2, module.__name__)
+            self.assertIn("--out: got '/nonexistent-dir/out.json', expected "
+                          "a path in an existing directory", err.getvalue())
+
     def test_catch_points_reproduces_its_json(self):
         again, stored = self._rerun(catch_points, "catch_points")
         self.assertEqual(again, stored)

@@ -39,6 +39,8 @@ FINGERS = ("thumb", "index", "middle", "ring", "little")
 HAND_JOINTS = tuple(f"{f}_j{k}" for f in FINGERS for k in (1, 2))
 # The bodies of each finger, proximal first.
 FINGER_LINKS = {f: (f"{f}_proximal", f"{f}_distal") for f in FINGERS}
+# The arm's bodies, base first (puma560.sdf).
+ARM_LINKS = tuple(f"link{i}" for i in range(7))
 # Every finger servo of the paper (section III.A), N·m.
 FINGER_EFFORT_LIMIT = 10.0
 # Finger joint speed limit, rad/s: 55 rev/min, the no-load speed of the ROBOTIS
