@@ -38,9 +38,6 @@ import numpy as np
 
 from regrasp_drake.errors import InputError, check_output_path
 from regrasp_drake.grid import (
-    ENDINGS,
-    H_CATCH_VALUES,
-    H_DOWN_VALUES,
     ending,
     ending_counts,
     plan_object,
@@ -48,14 +45,12 @@ from regrasp_drake.grid import (
     run_map,
 )
 from regrasp_drake.paths import MODELS_DIR
+from regrasp_drake.plots import draw_endings, ending_legend
 
 HERE = Path(__file__).parent / "failure_modes"
 DEFAULT_OBJECTS = ("table1-row1", "table1-row2", "table1-row3", "table1-row4",
                    "table1-row5", "adze-d300-3", "hook-d300-4",
                    "flashlight-d250-4")
-COLOURS = {"caught": "#2ca02c", "in_fingers": "#9467bd", "on_arm": "#d62728",
-           "loose": "#ff7f0e", "below_palm": "#1f77b4",
-           "near_ground": "#17becf", "failed": "#8c564b", "other": "#7f7f7f"}
 
 
 def _shown(path: Path) -> str:
@@ -106,46 +101,25 @@ def summarize(name: str, rows: dict, start) -> dict:
 
 
 def plot(results: list, maps: dict, path: Path, title: str) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.colors import ListedColormap
-    from matplotlib.patches import Patch, Rectangle
 
-    keys = list(ENDINGS)
-    cmap = ListedColormap([COLOURS[k] for k in keys])
     n = len(results)
     cols = min(4, n)
     rows_ = (n + cols - 1) // cols
     fig, axes = plt.subplots(rows_, cols, figsize=(4.2 * cols, 3.4 * rows_ + 1),
                              squeeze=False)
     for ax, result in zip(axes.flat, results):
-        grid = np.zeros((len(H_CATCH_VALUES), len(H_DOWN_VALUES)))
-        for (i, j), row in maps[result["object"]].items():
-            grid[i, j] = keys.index(ending(row))
-        ax.imshow(grid, origin="lower", cmap=cmap, vmin=-0.5,
-                  vmax=len(keys) - 0.5, aspect="auto")
-        ax.set_xticks(range(0, len(H_DOWN_VALUES), 2),
-                      [f"{v:.2f}" for v in H_DOWN_VALUES[::2]], fontsize=7,
-                      rotation=60)
-        ax.set_yticks(range(len(H_CATCH_VALUES)),
-                      [f"{v:.2f}" for v in H_CATCH_VALUES], fontsize=7)
-        ax.set_xlabel("h_down [m]", fontsize=8)
-        ax.set_ylabel("h_catch [m]", fontsize=8)
+        start = result["start_cell"]
+        draw_endings(ax, maps[result["object"]],
+                     marks=[] if start is None else [(tuple(start), "gold")])
         e = result["endings"]
         ax.set_title(f"{result['object']}: {e['caught']} caught, "
                      f"{e['on_arm']} on the arm", fontsize=9)
-        if result["start_cell"] is not None:
-            i, j = result["start_cell"]
-            ax.add_patch(Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False,
-                                   edgecolor="gold", linewidth=2.5))
     for ax in list(axes.flat)[n:]:
         ax.axis("off")
-    fig.legend(handles=[Patch(color=COLOURS[k], label=ENDINGS[k])
-                        for k in keys]
-               + [Patch(facecolor="none", edgecolor="gold",
-                        label="the network's start cell (Table 1)")],
-               loc="lower center", ncol=2, fontsize=8)
+    fig.legend(handles=ending_legend(extra=[
+        ("the network's start cell (Table 1)", "gold")]),
+        loc="lower center", ncol=2, fontsize=8)
     fig.suptitle(title)
     fig.tight_layout(rect=(0, 0.16 if rows_ == 1 else 0.1, 1, 0.97))
     fig.savefig(path, dpi=110)

@@ -83,12 +83,21 @@ def _cmd_grid(args) -> int:
     obj = resolve_object(name=args.object, file=args.object_file)
     if args.workers < 1:
         raise InputError(f"--workers: got {args.workers}, expected >= 1")
-    out = args.out or Path(f"grid-{obj.name}.jsonl")
+    if args.catch_point < 1:
+        raise InputError(f"--catch-point: got {args.catch_point}, expected "
+                         ">= 1")
+    entry = obj.name + ("" if args.catch_point == 1
+                        else f"@{args.catch_point}")
+    out = args.out or Path(f"grid-{entry}.jsonl")
     rows = success_map(object_name=args.object, object_file=args.object_file,
                        scenario_path=args.scenario, out=out,
-                       workers=args.workers)
-    print(f"{obj.name}: outcome of every cell (results in {out})")
+                       workers=args.workers, catch_point=args.catch_point)
+    print(f"{entry}: outcome of every cell (results in {out})")
     print(format_map(rows))
+    if args.plot:
+        from regrasp_drake.plots import plot_success_map
+        plot_success_map(rows, args.plot, title=f"{entry}: success map")
+        print(f"map: {args.plot}")
     return 0
 
 
@@ -369,6 +378,13 @@ def make_parser() -> argparse.ArgumentParser:
                         "file is resumed (default grid-<object>.jsonl)")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                    metavar="N", help="worker processes (default: all cores)")
+    p.add_argument("--catch-point", type=int, default=1, metavar="K",
+                   help="map the K-th catch point of the watched flight, "
+                        "counted as `dataset` counts them (default 1, the "
+                        "plan's)")
+    p.add_argument("--plot", type=Path, metavar="F",
+                   help="PNG of the map, each cell coloured by how it ended, "
+                        "the label cell framed")
     p.set_defaults(func=_cmd_grid)
 
     p = sub.add_parser("throw", help="the observation throw and its offline "

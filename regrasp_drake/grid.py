@@ -23,6 +23,10 @@ import numpy as np
 
 H_DOWN_VALUES = np.round(np.arange(-0.14, 0.001, 0.01), 2)    # 15, [m]
 H_CATCH_VALUES = np.round(np.arange(0.04, 0.401, 0.04), 2)    # 10, [m]
+# Catch points of one object are at least this far apart in time (s): the
+# object falls some 10 cm and turns some 0.2 rad between them, so the hand
+# meets it at another speed and attitude.
+CATCH_POINT_SEPARATION_S = 0.03
 
 
 def cells() -> list[tuple[int, int]]:
@@ -42,10 +46,22 @@ def nearest_cell(h_catch: float, h_down: float) -> tuple[int, int]:
 
 
 # ---- success maps ----------------------------------------------------------
-def plan_object(scenario, obj, ik):
-    """The watching throw and the offline stage (deterministic)."""
-    from regrasp_drake.throw_catch import plan_catch, watch
-    return plan_catch(scenario, obj, ik, watch(scenario, obj, ik))
+def plan_object(scenario, obj, ik, catch_point: int = 1):
+    """The watching throw and the offline stage (deterministic): the plan at
+    the `catch_point`-th catch point, counted as the data set counts them
+    (reachable moments, best first, at least CATCH_POINT_SEPARATION_S
+    apart). Raises InputError when the flight has fewer."""
+    from regrasp_drake.errors import InputError
+    from regrasp_drake.throw_catch import plan_catches, watch
+    separation_s = CATCH_POINT_SEPARATION_S
+    plans = plan_catches(scenario, obj, ik, watch(scenario, obj, ik),
+                         count=catch_point, min_separation_s=separation_s)
+    if len(plans) < catch_point:
+        raise InputError(
+            f"--catch-point: got {catch_point}, expected at most "
+            f"{len(plans)}: object {obj.name} has {len(plans)} reachable "
+            f"catch point(s) at least {separation_s} s apart")
+    return plans[catch_point - 1]
 
 
 def read_rows(path: Path, key=lambda row: tuple(row["cell"])) -> dict:
@@ -130,8 +146,12 @@ def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
 
 
 def success_map(*, object_name=None, object_file=None, scenario_path=None,
-                out: Path, workers: int = 2, progress=True) -> dict:
-    """`regrasp-drake grid`: the success map of one object, resumable."""
+                out: Path, workers: int = 2, progress=True,
+                catch_point: int = 1) -> dict:
+    """`regrasp-drake grid`: the success map of one object at its
+    `catch_point`-th catch point, resumable. What the rows are computed from
+    (the object, the catch point, the scenario's digest and the plan) is
+    written beside them (`plan_path`) and must match when a run resumes."""
     import torch
 
     from regrasp_drake.planning.ik import ArmIk
@@ -141,9 +161,55 @@ def success_map(*, object_name=None, object_file=None, scenario_path=None,
     scenario = load_scenario(scenario_path)
     obj = resolve_object(name=object_name, file=object_file)
     ik = ArmIk()
-    plan = plan_object(scenario, obj, ik)
+    plan = plan_object(scenario, obj, ik, catch_point)
+    check_resume(out, map_source(scenario, obj, catch_point, plan))
     return run_map(scenario, obj, ik, plan, out, workers=workers,
                    progress=progress)
+
+
+def plan_path(out: Path) -> Path:
+    """The file beside a map's rows that says what they were computed from."""
+    out = Path(out)
+    return out.with_name(out.name + ".plan.json")
+
+
+def map_source(scenario, obj, catch_point: int, plan) -> dict:
+    """What a success map's rows are computed from."""
+    from regrasp_drake.learning.library import scenario_digest
+    return {"object": obj.name, "catch_point": catch_point,
+            "scenario_digest": scenario_digest(scenario),
+            "plan": plan.as_dict()}
+
+
+def check_resume(out: Path, source: dict) -> None:
+    """Before rows are appended to `out`: writes `source` to plan_path(out)
+    for a new map; for a map begun earlier, refuses (InputError naming
+    --out) rows computed from anything else (another object, catch point,
+    scenario or plan), which resuming would mix into this map."""
+    from regrasp_drake.errors import InputError
+    out, side = Path(out), plan_path(out)
+    if side.exists():
+        try:
+            stored = json.loads(side.read_text())
+        except (OSError, json.JSONDecodeError) as e:
+            raise InputError(f"--out: {side} is not readable JSON ({e}), "
+                             "expected what the map's rows were computed "
+                             "from") from None
+        if stored != source:
+            differs = [k for k in source if stored.get(k) != source[k]]
+            raise InputError(
+                f"--out: {out} holds a map of {stored.get('object')} at catch "
+                f"point {stored.get('catch_point')} computed with another "
+                f"{', '.join(differs)} ({side}), expected one of "
+                f"{source['object']} at catch point {source['catch_point']} "
+                "with this scenario: give another --out")
+        return
+    if read_rows(out):
+        raise InputError(
+            f"--out: {out} holds cells but no {side.name} saying what they "
+            "were computed from, expected a new file or one this command "
+            "began: give another --out")
+    side.write_text(json.dumps(source, indent=1) + "\n")
 
 
 def print_progress(n, total, start, label="", unit="cells"):

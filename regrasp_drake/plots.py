@@ -56,3 +56,78 @@ def _shade_phases(ax, t, phase):
             if ax is ax.figure.axes[0]:
                 ax.text(t[start], 1010, ph.name.lower(), fontsize=7)
             start = k
+
+
+# The colour of each of grid.ENDINGS in the maps below.
+ENDING_COLOURS = {"caught": "#2ca02c", "in_fingers": "#9467bd",
+                  "on_arm": "#d62728", "loose": "#ff7f0e",
+                  "below_palm": "#1f77b4", "near_ground": "#17becf",
+                  "failed": "#8c564b", "other": "#7f7f7f"}
+
+
+def draw_endings(ax, rows: dict, *, marks=()) -> None:
+    """Draws a success map on `ax`: h_down across, h_catch up (m), each cell
+    coloured by how its episode ended (grid.ending), white where it has not
+    run; `marks`: (cell, colour) pairs framed on top."""
+    from matplotlib.colors import ListedColormap
+    from matplotlib.patches import Rectangle
+
+    from regrasp_drake.grid import ENDINGS, H_CATCH_VALUES, H_DOWN_VALUES, ending
+    keys = list(ENDINGS)
+    cmap = ListedColormap([ENDING_COLOURS[k] for k in keys])
+    cmap.set_bad("white")
+    grid = np.full((len(H_CATCH_VALUES), len(H_DOWN_VALUES)), np.nan)
+    for (i, j), row in rows.items():
+        grid[i, j] = keys.index(ending(row))
+    ax.imshow(np.ma.masked_invalid(grid), origin="lower", cmap=cmap,
+              vmin=-0.5, vmax=len(keys) - 0.5, aspect="auto")
+    ax.set_xticks(range(0, len(H_DOWN_VALUES), 2),
+                  [f"{v:.2f}" for v in H_DOWN_VALUES[::2]], fontsize=7,
+                  rotation=60)
+    ax.set_yticks(range(len(H_CATCH_VALUES)),
+                  [f"{v:.2f}" for v in H_CATCH_VALUES], fontsize=7)
+    ax.set_xlabel("h_down [m]", fontsize=8)
+    ax.set_ylabel("h_catch [m]", fontsize=8)
+    for (i, j), colour in marks:
+        ax.add_patch(Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False,
+                               edgecolor=colour, linewidth=2.5))
+
+
+def ending_legend(keys=None, extra=()) -> list:
+    """Legend handles for draw_endings' colours (every ending, or `keys`),
+    then `extra` (label, colour) pairs for framed cells."""
+    from matplotlib.patches import Patch
+
+    from regrasp_drake.grid import ENDINGS
+    return ([Patch(color=ENDING_COLOURS[k], label=ENDINGS[k])
+             for k in (keys or ENDINGS)]
+            + [Patch(facecolor="none", edgecolor=colour, label=label)
+               for label, colour in extra])
+
+
+def plot_success_map(rows: dict, path: Path, *, title: str) -> Path:
+    """`regrasp-drake grid --plot`: one map coloured by ending, its label
+    (the data set's rule: the catching cell farthest from any failed cell,
+    learning/dataset.label_cell) framed, with the count of each ending."""
+    from regrasp_drake.grid import ENDINGS, ending_counts
+    from regrasp_drake.learning.dataset import SHAPE, label_cell
+    counts = ending_counts(rows.values())
+    fig, ax = plt.subplots(figsize=(7.5, 6.2))
+    caught = np.zeros(SHAPE, bool)
+    for cell, row in rows.items():
+        caught[cell] = row["outcome"] == "caught"
+    label = label_cell(caught) if len(rows) == caught.size else None
+    draw_endings(ax, rows, marks=[(label, "gold")] if label else ())
+    shown = [k for k in ENDINGS if counts[k]]
+    handles = ending_legend(shown, [("label: the catching cell farthest "
+                                     "from any failed one", "gold")]
+                            if label else ())
+    for handle, key in zip(handles, shown):
+        handle.set_label(f"{counts[key]:>3}  {handle.get_label()}")
+    fig.legend(handles=handles, loc="lower center", ncol=1, fontsize=7.5)
+    ax.set_title(f"{title}\n{counts['caught']} of {len(rows)} cells catch",
+                 fontsize=10)
+    fig.tight_layout(rect=(0, 0.06 + 0.035 * len(handles), 1, 1))
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)

@@ -5,6 +5,7 @@ import tempfile
 import unittest
 from pathlib import Path
 
+from regrasp_drake.errors import InputError
 from regrasp_drake.grid import (
     ENDINGS,
     H_CATCH_VALUES,
@@ -12,12 +13,15 @@ from regrasp_drake.grid import (
     append_rows,
     cell_parameters,
     cells,
+    check_resume,
     ending,
     ending_counts,
     format_map,
     nearest_cell,
+    plan_path,
     read_rows,
 )
+from regrasp_drake.plots import plot_success_map
 from regrasp_drake.station.scenario import H_CATCH_RANGE, H_DOWN_RANGE
 
 
@@ -108,3 +112,87 @@ class TestGrid(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class ResumeCheckTest(unittest.TestCase):
+    """A map's rows are resumed only when they come from the same object,
+    catch point, scenario and plan (`check_resume`): before, a map begun for
+    one object was resumed as another's and printed as its map."""
+
+    SOURCE = {"object": "a", "catch_point": 1, "scenario_digest": "x",
+              "plan": {"p_WG": [0.8, 0.0, 0.5]}}
+
+    def test_new_map_records_its_source_and_resumes(self):
+        with tempfile.TemporaryDirectory() as d:
+            out = Path(d) / "g.jsonl"
+            check_resume(out, self.SOURCE)
+            self.assertEqual(json.loads(plan_path(out).read_text()),
+                             self.SOURCE)
+            out.write_text(json.dumps({"cell": [0, 0],
+                                       "outcome": "caught"}) + "\n")
+            check_resume(out, json.loads(json.dumps(self.SOURCE)))
+
+    def test_other_sources_refused_naming_out(self):
+        with tempfile.TemporaryDirectory() as d:
+            out = Path(d) / "g.jsonl"
+            check_resume(out, self.SOURCE)
+            for key, value in (("object", "b"), ("catch_point", 2),
+                               ("scenario_digest", "y"),
+                               ("plan", {"p_WG": [0.8, 0.0, 0.49]})):
+                with self.subTest(key=key):
+                    with self.assertRaises(InputError) as e:
+                        check_resume(out, self.SOURCE | {key: value})
+                    message = str(e.exception)
+                    self.assertTrue(message.startswith("--out: "))
+                    self.assertIn(f"computed with another {key}", message)
+                    self.assertNotIn("\n", message)
+
+    def test_rows_without_source_or_a_corrupt_source_refused(self):
+        with tempfile.TemporaryDirectory() as d:
+            out = Path(d) / "g.jsonl"
+            out.write_text(json.dumps({"cell": [0, 0],
+                                       "outcome": "caught"}) + "\n")
+            with self.assertRaises(InputError) as e:
+                check_resume(out, self.SOURCE)
+            self.assertIn("holds cells but no g.jsonl.plan.json", str(e.exception))
+            self.assertFalse(plan_path(out).exists())
+            plan_path(out).write_text("{")
+            with self.assertRaises(InputError) as e:
+                check_resume(out, self.SOURCE)
+            self.assertIn("is not readable JSON", str(e.exception))
+
+
+class SuccessMapPlotTest(unittest.TestCase):
+    """`grid --plot`: the stored table1-row4 map (benchmarks/failure_modes)
+    drawn by ending, with its label framed."""
+
+    def test_plot_written(self):
+        rows = read_rows(Path(__file__).parents[1] / "benchmarks" /
+                         "failure_modes" / "table1-row4.jsonl")
+        self.assertEqual(len(rows), 150)
+        with tempfile.TemporaryDirectory() as d:
+            path = plot_success_map(rows, Path(d) / "m.png", title="row 4")
+            self.assertEqual(path.read_bytes()[:8], b"\x89PNG\r\n\x1a\n")
+            self.assertGreater(path.stat().st_size, 10_000)
+
+
+class CatchPointPlanTest(unittest.TestCase):
+    """`grid --catch-point K` plans as the data set does: table1-row3's second
+    catch point is the one benchmarks/catch_points.py mapped."""
+
+    def test_second_catch_point_and_one_too_many(self):
+        from regrasp_drake.grid import plan_object
+        from regrasp_drake.planning.ik import ArmIk
+        from regrasp_drake.station.scenario import load_scenario
+        from regrasp_drake.world.objects import resolve_object
+        scenario, ik = load_scenario(), ArmIk()
+        obj = resolve_object(name="table1-row3")
+        stored = json.loads((Path(__file__).parents[1] / "benchmarks" /
+                             "catch_points" / "plans" /
+                             "table1-row3@2.json").read_text())
+        plan = plan_object(scenario, obj, ik, catch_point=2)
+        self.assertEqual(plan.as_dict(), stored["plan"])
+        with self.assertRaises(InputError) as e:
+            plan_object(scenario, obj, ik, catch_point=5)
+        self.assertIn("--catch-point: got 5, expected at most 4",
+                      str(e.exception))

@@ -50,10 +50,7 @@ from regrasp_drake.errors import InputError
 from regrasp_drake.paths import REPO_DIR
 
 FEATURE_NAMES = ("v_catch", "h_cm", "r_cm", "d_obj", "v_conv")
-# Catch points of one object are at least this far apart in time (s): the
-# object falls some 10 cm and turns some 0.2 rad between them, so the hand
-# meets it at another speed and attitude.
-CATCH_POINT_SEPARATION_S = 0.03
+CATCH_POINT_SEPARATION_S = grid.CATCH_POINT_SEPARATION_S
 SHAPE = (len(grid.H_CATCH_VALUES), len(grid.H_DOWN_VALUES))
 
 
