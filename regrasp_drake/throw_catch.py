@@ -171,6 +171,17 @@ def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
                      f"{len(points)} moments ({shown})")
 
 
+def reachable_h_down(ik: ArmIk, plan: CatchPlan, h_downs) -> list[bool]:
+    """For each h_down (m), whether the arm reaches the lowered pose the
+    catch state machine commands under this plan (the same inverse
+    kinematics, from the grasp pose's joint angles): where it does not, the
+    episode fails with "lowered pose unreachable" whatever the object
+    does."""
+    from regrasp_drake.station.catch_state_machine import lowered_pose
+    return [ik.solve(lowered_pose(plan.X_WG, h), plan.q_grasp).success
+            for h in h_downs]
+
+
 def catch_once(*, scenario_path=None, object_name=None, object_file=None,
                h_catch: float, h_down: float, html: Path | None = None,
                plot: Path | None = None) -> tuple[EpisodeResult, CatchPlan]:

@@ -276,3 +276,52 @@ class NoCatchPointTest(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class UnreachableLoweringTest(unittest.TestCase):
+    """adze-d300-3: the arm reaches its grasp pose but cannot lower the hand
+    more than 3 cm there; the stored success map
+    (models/dataset/cells/adze-d300-3.jsonl) has every cell of h_down
+    -0.14 … -0.04 m failed with "lowered pose unreachable". The learning
+    phase knows it from the plan and spends no throw on them: from the
+    network's cell (6, 6) the wavefront took 81 catch throws, the start
+    moved to the nearest reachable h_down takes 4 (the map's cells)."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.rows = {tuple(r["cell"]): r for r in map(json.loads, (
+            MODELS_DIR / "dataset" / "cells" / "adze-d300-3.jsonl")
+            .read_text().splitlines())}
+        cls.scenario, cls.ik = load_scenario(), ArmIk()
+        cls.obj = load_catalogue()["adze-d300-3"]
+
+    def test_reach_is_the_maps_failed_columns(self):
+        from regrasp_drake.grid import H_DOWN_VALUES
+        from regrasp_drake.learning.learning_phase import feasible_start
+        from regrasp_drake.throw_catch import plan_catch, watch
+        plan = plan_catch(self.scenario, self.obj, self.ik,
+                          watch(self.scenario, self.obj, self.ik))
+        start, reach = feasible_start((6, 6), self.ik, plan)
+        failed = [all(self.rows[(i, j)]["outcome"] == "failed"
+                      for i in range(10)) for j in range(len(H_DOWN_VALUES))]
+        self.assertEqual(reach, [not f for f in failed])
+        self.assertEqual(reach.count(False), 11)
+        self.assertEqual(start, (6, 11))
+        self.assertEqual(feasible_start((2, 13), self.ik, plan)[0], (2, 13))
+
+    def test_learning_skips_unreachable_cells(self):
+        with tempfile.TemporaryDirectory() as d:
+            weights = constant_weights(Path(d) / "w.pt", 0.28, -0.08)
+            model, _ = load_weights(weights)
+            r = learn(self.scenario, self.obj, model, ik=self.ik,
+                      max_throws=6, progress=None)
+        self.assertEqual(r.start_cell, (6, 11))
+        self.assertTrue(r.caught)
+        self.assertEqual(r.throws, 5)
+        self.assertEqual([a.cell for a in r.attempts],
+                         [(6, 11), (5, 11), (6, 12), (7, 11)])
+        for a in r.attempts:  # as the stored map has them
+            self.assertEqual(a.outcome, self.rows[a.cell]["outcome"])
+        order = wavefront_order((6, 6))
+        self.assertEqual(next(k for k, c in enumerate(order, 1)
+                              if self.rows[c]["outcome"] == "caught"), 81)

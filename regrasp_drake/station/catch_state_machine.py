@@ -65,6 +65,14 @@ _QGRASP = slice(19, 25)
 _SIZE = 25
 
 
+def lowered_pose(X_WG: RigidTransform, h_down: float) -> RigidTransform:
+    """The palm's pose at the end of the lowering (LOWER): the grasp pose
+    X_WG moved |h_down| straight down. Its joint angles are solved by
+    inverse kinematics from the grasp pose's."""
+    return RigidTransform(X_WG.rotation(),
+                          X_WG.translation() + [0.0, 0.0, -abs(h_down)])
+
+
 @dc.dataclass(frozen=True)
 class ThrowPerturbation:
     """One throw's release noise: the fingers open `release_dt_s` late, and
@@ -277,10 +285,9 @@ class CatchStateMachine(LeafSystem):
             if self._approach_distance(context) < h_catch:
                 x[_T_CLOSE] = t
                 x[_H_DOWN] = h_down
-                X_WG = self._X_WG.Eval(context)
-                X_WL = RigidTransform(X_WG.rotation(), X_WG.translation()
-                                      + [0.0, 0.0, -abs(h_down)])
-                result = self._ik.solve(X_WL, x[_QGRASP])
+                result = self._ik.solve(
+                    lowered_pose(self._X_WG.Eval(context), h_down),
+                    x[_QGRASP])
                 if not result.success:
                     return self._fail(x, "lowered pose unreachable: "
                                       f"{result.reason()}")
