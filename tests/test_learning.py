@@ -325,3 +325,8 @@ class UnreachableLoweringTest(unittest.TestCase):
         order = wavefront_order((6, 6))
         self.assertEqual(next(k for k, c in enumerate(order, 1)
                               if self.rows[c]["outcome"] == "caught"), 81)
+
+    def test_throw_reports_the_deepest_lowering(self):
+        from regrasp_drake.learning.learning_phase import observe
+        summary = observe(self.scenario, self.obj, self.ik).as_dict()
+        self.assertEqual(summary["plan"]["deepest_reachable_h_down"], -0.03)

@@ -95,6 +95,9 @@ class Observation:
     reach: list[list[dict]]   # per point, per side: reachable, reason
     plan: CatchPlan | None    # None when no point is reachable
     plan_error: str           # why there is no plan ("" when there is one)
+    # Per h_down of the grid, whether the arm reaches the lowered pose under
+    # the plan (`throw_catch.reachable_h_down`); None without a plan.
+    lowering_reach: list[bool] | None = None
 
     def as_dict(self) -> dict:
         used = self.plan.catch_point.t_s if self.plan else None
@@ -103,7 +106,9 @@ class Observation:
             "watch": _episode_dict(self.watched),
             "catch_points": [p.as_dict() | {"used": p.t_s == used, "sides": r}
                              for p, r in zip(self.points, self.reach)],
-            "plan": None if self.plan is None else _plan_dict(self.plan),
+            "plan": None if self.plan is None else _plan_dict(self.plan) | {
+                "deepest_reachable_h_down": float(
+                    H_DOWN_VALUES[self.lowering_reach.index(True)])},
             "plan_error": self.plan_error,
         }
 
@@ -146,7 +151,8 @@ def observe(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
             sides.append({"side": side, "reachable": result.success,
                           "reason": result.reason()})
         reach.append(sides)
-    return Observation(watched, points, reach, plan, error)
+    return Observation(watched, points, reach, plan, error, None if plan is None
+                       else reachable_h_down(ik, plan, H_DOWN_VALUES))
 
 
 # ---- the network's prediction -------------------------------------------
