@@ -21,8 +21,10 @@ from regrasp_drake.learning.dataset import (
     label_cell,
     load_map,
     robustness,
+    scenario_text,
 )
 
+REPO = Path(__file__).parents[1]
 OBJECTS = ["table1-row2", "table1-row1"]
 # A coarse grid: h_catch 0.12, 0.28 × h_down -0.11, -0.05.
 COARSE = [(i, j) for i in (2, 6) for j in (3, 9)]
@@ -166,6 +168,25 @@ class GenerateTest(unittest.TestCase):
                          progress=False)
         self.assertEqual(again["entries_computed"], 0)
         self.assertEqual(again["runs"], self.serial["runs"])
+
+    def test_another_scenario_is_not_resumed(self):
+        # The finished set (provenance.json) and a set whose first run was
+        # killed (scenario.yaml only) both refuse another scenario before
+        # any simulation, naming the first field that differs.
+        hold = REPO / "benchmarks" / "scenarios" / "hold_0.5.yaml"
+        killed = self.root / "killed"
+        killed.mkdir()
+        (killed / "scenario.yaml").write_text(scenario_text())
+        for out in (self.root / "serial", killed):
+            with self.subTest(out=out.name):
+                with self.assertRaises(InputError) as e:
+                    generate(OBJECTS, out, workers=1, only=COARSE,
+                             scenario_path=hold, progress=False)
+                self.assertEqual(
+                    str(e.exception).split(" (")[0],
+                    f"--scenario: monitor.hold_s is 0.5 here but 0.25 in the "
+                    f"data set in {out}")
+        self.assertFalse((self.root / "serial" / "scenario.yaml").exists())
 
     def test_two_catch_points_per_object(self):
         """--catch-points 2: a second entry per object, planned at another

@@ -30,7 +30,11 @@ Files, under the output directory:
                            FEATURE_NAMES order; the map-prior search's
                            feature kernel, learning/search.py);
     provenance.json        scenario, catalogue hash, code version, timing,
-                           and every run that computed entries here.
+                           and every run that computed entries here;
+    scenario.yaml          until the first run has finished: the scenario
+                           the entries are computed with.
+A data set is resumed only under the scenario it was begun with
+(`check_same_scenario`).
 """
 
 import csv
@@ -173,6 +177,7 @@ def generate(names: list[str], out_dir: Path, *, workers: int = 1,
         raise InputError(f"--catch-points: got {catch_points}, expected 1 to 5")
     names = entry_names(names, catch_points)
     out_dir = Path(out_dir)
+    check_same_scenario(out_dir, scenario_path)
     (out_dir / "cells").mkdir(parents=True, exist_ok=True)
     todo = [n for n in names if not _object_done(out_dir, n, only)]
     start = time.perf_counter()
@@ -186,9 +191,65 @@ def generate(names: list[str], out_dir: Path, *, workers: int = 1,
         if progress:
             print(file=sys.stderr)
     wall_s = time.perf_counter() - start
-    return assemble(names, out_dir, scenario_path=scenario_path,
-                    wall_s=wall_s, workers=workers, backend=backend,
-                    catch_points=catch_points, computed=len(tasks))
+    provenance = assemble(names, out_dir, scenario_path=scenario_path,
+                          wall_s=wall_s, workers=workers, backend=backend,
+                          catch_points=catch_points, computed=len(tasks))
+    # provenance.json holds the scenario now (check_same_scenario).
+    (out_dir / "scenario.yaml").unlink(missing_ok=True)
+    return provenance
+
+
+def scenario_text(scenario_path=None) -> str:
+    """The scenario as the data set records it (its every value, YAML)."""
+    from pydrake.common.yaml import yaml_dump_typed
+
+    from regrasp_drake.station.scenario import Scenario, load_scenario
+    return yaml_dump_typed(load_scenario(scenario_path), schema=Scenario)
+
+
+def check_same_scenario(out_dir: Path, scenario_path=None) -> None:
+    """Entries are resumed and assembled only under the scenario they were
+    computed with: the one in out_dir's provenance.json, or, before a run
+    has finished, in its scenario.yaml (written here for a new data set).
+    Another one is refused (InputError naming --scenario and the first
+    field that differs): resuming would mix two scenarios' maps under one
+    provenance."""
+    current = scenario_text(scenario_path)
+    provenance, started = out_dir / "provenance.json", out_dir / "scenario.yaml"
+    stored = None
+    if provenance.exists():
+        try:
+            stored = json.loads(provenance.read_text()).get("scenario")
+        except (OSError, json.JSONDecodeError) as e:
+            raise InputError(f"--out: {provenance} is not readable JSON "
+                             f"({e}), expected the data set's provenance") from None
+    elif started.exists():
+        stored = started.read_text()
+    if stored is None:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        started.write_text(current)
+        return
+    if stored != current:
+        import yaml
+        a, b = yaml.safe_load(stored) or {}, yaml.safe_load(current) or {}
+        field, old, new = _first_difference(a, b)
+        raise InputError(
+            f"--scenario: {field} is {new!r} here but {old!r} in the data set "
+            f"in {out_dir} (computed with another scenario), expected the "
+            "same scenario to resume it, or another --out")
+
+
+def _first_difference(a, b, prefix=""):
+    """(dotted field, a's value, b's value) of the first field where two
+    parsed YAML mappings differ."""
+    for key in sorted(set(a) | set(b), key=str):
+        x, y = a.get(key), b.get(key)
+        if x == y:
+            continue
+        if isinstance(x, dict) and isinstance(y, dict):
+            return _first_difference(x, y, f"{prefix}{key}.")
+        return f"{prefix}{key}", x, y
+    return prefix.rstrip(".") or "scenario", a, b
 
 
 def _run_processes(tasks, workers):
@@ -239,9 +300,7 @@ def assemble(names, out_dir: Path, *, scenario_path=None, wall_s=None,
     files (entries in `names` order). wall_s, workers, backend and computed
     describe the run that called it: its wall time, and how many entries it
     computed (the others were already in out_dir)."""
-    from pydrake.common.yaml import yaml_dump_typed
 
-    from regrasp_drake.station.scenario import Scenario, load_scenario
     from regrasp_drake.world.objects import CATALOGUE_PATH
     out_dir = Path(out_dir)
     maps, features, samples, unusable, unlabelled = [], [], [], [], []
@@ -285,8 +344,7 @@ def assemble(names, out_dir: Path, *, scenario_path=None, wall_s=None,
         "label_rule": "most robust catching cell (Chebyshev distance to the "
                       "nearest failed cell); ties: nearest the tied cells' "
                       "mean, then lowest indices",
-        "scenario": yaml_dump_typed(load_scenario(scenario_path),
-                                    schema=Scenario),
+        "scenario": scenario_text(scenario_path),
         "catalogue_sha256": hashlib.sha256(
             Path(CATALOGUE_PATH).read_bytes()).hexdigest(),
         "code_version": _code_version(),
