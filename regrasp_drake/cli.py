@@ -287,6 +287,8 @@ def _cmd_train(args) -> int:
     if args.splits < 1:
         raise InputError(f"--splits: got {args.splits}, expected an integer "
                          ">= 1")
+    if args.seed < 0:
+        raise InputError(f"--seed: got {args.seed}, expected an integer >= 0")
     data = args.data or MODELS_DIR / "dataset"
     out = args.out or MODELS_DIR / "catch_mlp.pt"
     report = train(data, out, seed=args.seed,
@@ -298,6 +300,10 @@ def _cmd_train(args) -> int:
         out.with_suffix(".json").write_text(json.dumps(report, indent=1) + "\n")
     print(json.dumps({k: v for k, v in report.items() if k != "split"},
                      indent=1))
+    if not report["held_out"]:
+        print("regrasp-drake train: warning: fewer than 3 objects in the data "
+              "set: trained, validated and tested on the same samples (no "
+              "held-out figures)", file=sys.stderr)
     print(f"weights: {out}; report: {out.with_suffix('.json')}; curve: "
           f"{out.with_name(out.stem + '_training.png')}", file=sys.stderr)
     return 0

@@ -107,7 +107,7 @@ def append_rows(function, tasks, path: Path, done: dict, key, *,
             f.flush()
             done[key(row)] = row
             print_progress(n, len(tasks), start, label, unit)
-    print(file=sys.stderr)
+    end_progress()
 
 
 def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
@@ -141,7 +141,7 @@ def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
                   parameters=[cell_parameters(c) for c in todo],
                   workers=workers, on_result=write, handoff=handoff)
     if progress:
-        print(file=sys.stderr)
+        end_progress()
     return done
 
 
@@ -213,12 +213,24 @@ def check_resume(out: Path, source: dict) -> None:
 
 
 def print_progress(n, total, start, label="", unit="cells"):
+    """A progress bar on stderr: redrawn in place on a terminal; elsewhere (a
+    log file) one line at every tenth of the work, and at its end."""
     elapsed = time.perf_counter() - start
     rate = n / elapsed if elapsed > 0 else 0.0
     left = (total - n) / rate if rate > 0 else float("inf")
     bar = "#" * int(30 * n / total)
-    print(f"\r{label} [{bar:<30}] {n}/{total} {unit}, {rate:.2f} {unit}/s, "
-          f"{left:.0f} s left", end="", file=sys.stderr, flush=True)
+    line = (f"{label} [{bar:<30}] {n}/{total} {unit}, {rate:.2f} {unit}/s, "
+            f"{left:.0f} s left")
+    if sys.stderr.isatty():
+        print("\r" + line, end="", file=sys.stderr, flush=True)
+    elif n == total or 10 * n // total > 10 * (n - 1) // total:
+        print(line, file=sys.stderr, flush=True)
+
+
+def end_progress():
+    """Ends a terminal's progress bar (print_progress) with a newline."""
+    if sys.stderr.isatty():
+        print(file=sys.stderr)
 
 
 # How a cell's episode ended (`ending`), from its outcome, the grasp

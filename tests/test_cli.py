@@ -85,6 +85,13 @@ class TestCli(unittest.TestCase):
                 self.assertIn("--max-throws: got 1, expected an integer >= 2",
                               result.stderr)
 
+    def test_negative_seed_refused(self):
+        result = _run("train", "--seed", "-1")
+        self.assertEqual(result.returncode, 2)
+        self.assertEqual(result.stderr.strip(),
+                         "regrasp-drake train: error: --seed: got -1, "
+                         "expected an integer >= 0")
+
     def test_object_the_hand_cannot_hold_refused_with_the_reason(self):
         # A 0.4 m wide, 20 kg cylinder: valid as an object, but the watching
         # throw ends before the release with it near the ground.

@@ -235,6 +235,9 @@ class GenerateTest(unittest.TestCase):
             self.assertTrue(0.0 <= h_catch <= 0.40 and -0.14 <= h_down <= 0.0)
         for name in ("network", "best_constant_cell", "mean_label"):
             self.assertIn(report["test"][name]["catch_rate"], (0.0, 0.5, 1.0))
+        # Two objects cannot be split: the report says its figures are on
+        # the training samples.
+        self.assertFalse(report["held_out"])
 
     def test_two_workers_same_rows(self):
         generate(OBJECTS, self.root / "two", workers=2, only=COARSE,

@@ -196,3 +196,25 @@ class CatchPointPlanTest(unittest.TestCase):
             plan_object(scenario, obj, ik, catch_point=5)
         self.assertIn("--catch-point: got 5, expected at most 4",
                       str(e.exception))
+
+
+class ProgressTest(unittest.TestCase):
+    """Off a terminal (a log file) the progress bar writes whole lines, one
+    at every tenth of the work, instead of redrawing one line with \\r."""
+
+    def test_lines_in_a_log(self):
+        import contextlib
+        import io
+        import time
+
+        from regrasp_drake.grid import end_progress, print_progress
+        log = io.StringIO()
+        with contextlib.redirect_stderr(log):
+            start = time.perf_counter()
+            for n in range(1, 26):
+                print_progress(n, 25, start, "obj")
+            end_progress()
+        lines = log.getvalue().splitlines()
+        self.assertEqual(len(lines), 10)
+        self.assertNotIn("\r", log.getvalue())
+        self.assertTrue(lines[-1].startswith("obj [" + "#" * 30 + "] 25/25 cells"))

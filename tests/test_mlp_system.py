@@ -66,6 +66,13 @@ class WeightsFileTest(unittest.TestCase):
             load_weights(self.path)
         self.assertIn(self.path, str(cm.exception))
 
+    def test_directory_is_refused(self):
+        directory = os.path.dirname(self.path)
+        with self.assertRaises(InputError) as cm:
+            load_weights(directory)
+        self.assertEqual(str(cm.exception),
+                         f"{directory}: a directory, expected a weights file")
+
     def test_random_bytes_are_refused(self):
         with open(self.path, "wb") as f:
             f.write(np.random.default_rng(1).bytes(4096))

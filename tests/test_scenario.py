@@ -1,5 +1,6 @@
 """The scenario loader refuses what it cannot use, naming the field."""
 
+import re
 import tempfile
 import unittest
 from pathlib import Path
@@ -73,13 +74,19 @@ class TestScenario(unittest.TestCase):
                 with self.assertRaises(InputError) as e:
                     self._load(text)
                 message = str(e.exception)
-                self.assertTrue(message.startswith(field + ":"), message)
+                # The file first, then the field.
+                self.assertRegex(message, r"^\S+\.yaml: " + re.escape(field)
+                                 + ":")
                 self.assertIn(expected, message)
                 self.assertEqual(len(message.splitlines()), 1)
 
     def test_not_yaml_refused(self):
         with self.assertRaisesRegex(InputError, "not valid YAML at line 2, column 1"):
             self._load("time_step_s: [unclosed\n")
+
+    def test_empty_file_is_the_defaults(self):
+        for text in ("", "# nothing changed\n"):
+            self.assertEqual(self._load(text), load_scenario())
 
     def test_missing_file_refused(self):
         with self.assertRaisesRegex(InputError, "--scenario"):

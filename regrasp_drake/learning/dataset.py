@@ -43,7 +43,6 @@ import json
 import multiprocessing
 import os
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -189,7 +188,7 @@ def generate(names: list[str], out_dir: Path, *, workers: int = 1,
             if progress:
                 grid.print_progress(k, len(tasks), start, name, unit="entries")
         if progress:
-            print(file=sys.stderr)
+            grid.end_progress()
     wall_s = time.perf_counter() - start
     provenance = assemble(names, out_dir, scenario_path=scenario_path,
                           wall_s=wall_s, workers=workers, backend=backend,

@@ -96,6 +96,9 @@ def train(data_dir: Path, out: Path, *, seed: int = 0, epochs: int = 3000,
         "split": {"train": [samples[i]["object"] for i in train_i],
                   "validation": [samples[i]["object"] for i in val_i],
                   "test": [samples[i]["object"] for i in test_i]},
+        # False when the data set has too few objects to split
+        # (split_indices): every figure is then on the training samples.
+        "held_out": not set(test_i) & set(train_i),
         "seed": seed, "epochs": epochs, "best_epoch": best_epoch,
         "best_validation_loss": -best_score,
         "final_training_loss": curve["train"][-1],

@@ -101,6 +101,8 @@ def load_weights(path) -> tuple[CatchMlp, dict]:
     InputError naming the file and what is wrong with it, on one line.
     """
     path = os.fspath(path)
+    if os.path.isdir(path):
+        raise InputError(f"{path}: a directory, expected a weights file")
     if not os.path.isfile(path):
         raise InputError(f"{path}: no such weights file")
     try:

@@ -313,15 +313,24 @@ def load_scenario(path: str | Path | None = None) -> Scenario:
         raise InputError(f"{path}: not valid YAML{where}: {problem}") from None
     except (OSError, UnicodeDecodeError) as e:
         raise InputError(f"{path}: cannot be read: {e}") from None
-    if data is not None:
-        # The loader's own messages do not name the section of a field.
-        check_schema(data, Scenario, "")
+    if data is None:  # an empty file (or only comments): the defaults
+        scenario = Scenario()
+    else:
+        try:
+            # The loader's own messages do not name the section of a field.
+            check_schema(data, Scenario, "")
+        except InputError as e:
+            raise InputError(f"{path}: {e}") from None
+        try:
+            scenario = yaml_load_typed(schema=Scenario, filename=str(path))
+        except Exception as e:  # pydrake: RuntimeError/TypeError/yaml errors.
+            first = (str(e).strip().splitlines()[0] if str(e).strip()
+                     else repr(e))
+            raise InputError(f"{path}: {first}") from None
     try:
-        scenario = yaml_load_typed(schema=Scenario, filename=str(path))
-    except Exception as e:  # pydrake raises RuntimeError/TypeError/yaml errors.
-        first = str(e).strip().splitlines()[0] if str(e).strip() else repr(e)
-        raise InputError(f"{path}: {first}") from None
-    return validate(scenario)
+        return validate(scenario)
+    except InputError as e:
+        raise InputError(f"{path}: {e}") from None
 
 
 def check_schema(value, schema, field: str) -> None:
