@@ -1,0 +1,108 @@
+"""A data set generated again against the shipped one: how long it took, and
+whether it is the same, cell for cell.
+
+    .venv/bin/regrasp-drake dataset --workers 2 --out /tmp/ds   # about 1 h
+    .venv/bin/python benchmarks/dataset_check.py /tmp/ds
+        [--shipped models/dataset] [--out benchmarks/dataset_check.json]
+
+Compares every entry's plan (features and catch plan), every cell's
+outcome, ending (grid.ending) and the object's final position, then
+samples.csv and maps.npz, and copies the generated set's timing from its
+provenance.json (every run that computed entries there: wall time,
+workers, code version and numeric kernels). Writes the JSON; exits 1 when
+the sets differ.
+"""
+
+# regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
+# (regrasp_drake/numerics.py), so that results match across x86-64 machines.
+import regrasp_drake  # noqa: F401, I001 (first, see above)
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from regrasp_drake.errors import InputError, check_output_path
+from regrasp_drake.grid import ending, read_rows
+from regrasp_drake.paths import MODELS_DIR
+
+HERE = Path(__file__).parent
+
+
+def _plan(path: Path) -> dict:
+    data = json.loads(path.read_text())
+    return {k: data.get(k) for k in ("usable", "features", "plan", "reason")}
+
+
+def _cells(path: Path) -> dict:
+    return {cell: (row["outcome"], ending(row), row["p_WO_final"])
+            for cell, row in read_rows(path).items()}
+
+
+def compare(generated: Path, shipped: Path) -> dict:
+    """What differs between two data set directories (see the module)."""
+    for d in (generated, shipped):
+        if not (d / "provenance.json").is_file():
+            raise InputError(f"{d}: no provenance.json, expected a finished "
+                             "data set (regrasp-drake dataset --out)")
+    names = sorted(p.stem for p in (shipped / "plans").glob("*.json"))
+    mine = sorted(p.stem for p in (generated / "plans").glob("*.json"))
+    differing_plans, differing_cells, cells = [], {}, 0
+    for name in names:
+        if name not in mine:
+            continue
+        if _plan(generated / "plans" / f"{name}.json") != _plan(
+                shipped / "plans" / f"{name}.json"):
+            differing_plans.append(name)
+        a = _cells(generated / "cells" / f"{name}.jsonl")
+        b = _cells(shipped / "cells" / f"{name}.jsonl")
+        cells += len(b)
+        bad = sorted(str(c) for c in set(a) | set(b) if a.get(c) != b.get(c))
+        if bad:
+            differing_cells[name] = bad
+    with np.load(generated / "maps.npz") as x, np.load(shipped / "maps.npz") as y:
+        maps_equal = all(np.array_equal(x[k], y[k]) for k in y.files)
+    samples_equal = ((generated / "samples.csv").read_bytes()
+                     == (shipped / "samples.csv").read_bytes())
+    provenance = json.loads((generated / "provenance.json").read_text())
+    return {
+        "generated": str(generated), "shipped": str(shipped),
+        "entries": len(names), "entries_missing": sorted(set(names) - set(mine)),
+        "entries_extra": sorted(set(mine) - set(names)),
+        "cells_compared": cells,
+        "plans_differing": differing_plans, "cells_differing": differing_cells,
+        "maps_npz_equal": maps_equal, "samples_csv_equal": samples_equal,
+        "identical": (not differing_plans and not differing_cells
+                      and maps_equal and samples_equal
+                      and set(mine) == set(names)),
+        "runs": provenance.get("runs"),
+        "wall_s": sum(r.get("wall_s") or 0 for r in provenance.get("runs", [])),
+    }
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("generated", type=Path,
+                   help="the data set directory generated again")
+    p.add_argument("--shipped", type=Path, default=MODELS_DIR / "dataset")
+    p.add_argument("--out", type=Path, default=HERE / "dataset_check.json")
+    args = p.parse_args(argv)
+    try:
+        check_output_path("--out", args.out)
+        result = compare(args.generated, args.shipped)
+    except InputError as e:
+        print(f"dataset_check.py: error: {e}", file=sys.stderr)
+        return 2
+    args.out.write_text(json.dumps(result, indent=1) + "\n")
+    minutes = result["wall_s"] / 60
+    print(f"{result['entries']} entries, {result['cells_compared']} cells: "
+          f"{'identical' if result['identical'] else 'DIFFERENT'}; "
+          f"generated in {minutes:.1f} min ({len(result['runs'] or [])} "
+          f"run(s)); wrote {args.out}")
+    return 0 if result["identical"] else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
