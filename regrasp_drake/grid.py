@@ -53,14 +53,14 @@ def plan_object(scenario, obj, ik, catch_point: int = 1):
     apart). Raises InputError when the flight has fewer."""
     from regrasp_drake.errors import InputError
     from regrasp_drake.throw_catch import plan_catches, watch
-    separation_s = CATCH_POINT_SEPARATION_S
     plans = plan_catches(scenario, obj, ik, watch(scenario, obj, ik),
-                         count=catch_point, min_separation_s=separation_s)
+                         count=catch_point,
+                         min_separation_s=CATCH_POINT_SEPARATION_S)
     if len(plans) < catch_point:
         raise InputError(
             f"--catch-point: got {catch_point}, expected at most "
             f"{len(plans)}: object {obj.name} has {len(plans)} reachable "
-            f"catch point(s) at least {separation_s} s apart")
+            f"catch point(s) at least {CATCH_POINT_SEPARATION_S} s apart")
     return plans[catch_point - 1]
 
 

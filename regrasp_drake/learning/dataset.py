@@ -299,7 +299,6 @@ def assemble(names, out_dir: Path, *, scenario_path=None, wall_s=None,
     files (entries in `names` order). wall_s, workers, backend and computed
     describe the run that called it: its wall time, and how many entries it
     computed (the others were already in out_dir)."""
-
     from regrasp_drake.world.objects import CATALOGUE_PATH
     out_dir = Path(out_dir)
     maps, features, samples, unusable, unlabelled = [], [], [], [], []
