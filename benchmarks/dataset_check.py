@@ -6,7 +6,9 @@ whether it is the same, cell for cell.
         [--shipped models/dataset] [--out benchmarks/dataset_check.json]
 
 Compares every entry's plan (features and catch plan), every cell's
-outcome, ending (grid.ending) and the object's final position, then
+outcome and the object's final position (and its ending, grid.ending,
+where both rows record a drop reason: rows written before episodes
+recorded it have none), then
 samples.csv and maps.npz, and copies the generated set's timing from its
 provenance.json (every run that computed entries there: wall time,
 workers, code version and numeric kernels). Writes the JSON; exits 1 when
@@ -18,6 +20,7 @@ the sets differ.
 import regrasp_drake  # noqa: F401, I001 (first, see above)
 import argparse
 import json
+import subprocess
 import sys
 from pathlib import Path
 
@@ -25,7 +28,7 @@ import numpy as np
 
 from regrasp_drake.errors import InputError, check_output_path
 from regrasp_drake.grid import ending, read_rows
-from regrasp_drake.paths import MODELS_DIR
+from regrasp_drake.paths import MODELS_DIR, REPO_DIR
 
 HERE = Path(__file__).parent
 
@@ -36,8 +39,31 @@ def _plan(path: Path) -> dict:
 
 
 def _cells(path: Path) -> dict:
-    return {cell: (row["outcome"], ending(row), row["p_WO_final"])
+    """{cell: (outcome, final position, ending or None)}: rows written before
+    episodes recorded their drop reason have no ending to compare."""
+    return {cell: (row["outcome"], row["p_WO_final"],
+                   ending(row) if "drop_reason" in row else None)
             for cell, row in read_rows(path).items()}
+
+
+def _same(a, b) -> bool:
+    """Two cells agree: outcome and final position, and their endings
+    where both rows have one."""
+    if a is None or b is None:
+        return a is b
+    return a[:2] == b[:2] and (a[2] is None or b[2] is None or a[2] == b[2])
+
+
+def _shown(path: Path) -> str:
+    """A directory of the repository as `path (commit …)`: what it held
+    then; another directory as it is."""
+    try:
+        relative = Path(path).resolve().relative_to(REPO_DIR)
+    except ValueError:
+        return str(path)
+    commit = subprocess.run(["git", "-C", str(REPO_DIR), "rev-parse", "HEAD"],
+                            capture_output=True, text=True).stdout.strip()
+    return f"{relative} (commit {commit or 'unknown'})"
 
 
 def compare(generated: Path, shipped: Path) -> dict:
@@ -48,7 +74,7 @@ def compare(generated: Path, shipped: Path) -> dict:
                              "data set (regrasp-drake dataset --out)")
     names = sorted(p.stem for p in (shipped / "plans").glob("*.json"))
     mine = sorted(p.stem for p in (generated / "plans").glob("*.json"))
-    differing_plans, differing_cells, cells = [], {}, 0
+    differing_plans, differing_cells, cells, without_ending = [], {}, 0, 0
     for name in names:
         if name not in mine:
             continue
@@ -58,7 +84,9 @@ def compare(generated: Path, shipped: Path) -> dict:
         a = _cells(generated / "cells" / f"{name}.jsonl")
         b = _cells(shipped / "cells" / f"{name}.jsonl")
         cells += len(b)
-        bad = sorted(str(c) for c in set(a) | set(b) if a.get(c) != b.get(c))
+        without_ending += sum(v[2] is None for v in b.values())
+        bad = sorted(str(c) for c in set(a) | set(b)
+                     if not _same(a.get(c), b.get(c)))
         if bad:
             differing_cells[name] = bad
     with np.load(generated / "maps.npz") as x, np.load(shipped / "maps.npz") as y:
@@ -67,10 +95,13 @@ def compare(generated: Path, shipped: Path) -> dict:
                      == (shipped / "samples.csv").read_bytes())
     provenance = json.loads((generated / "provenance.json").read_text())
     return {
-        "generated": str(generated), "shipped": str(shipped),
+        "generated": str(generated), "shipped": _shown(shipped),
         "entries": len(names), "entries_missing": sorted(set(names) - set(mine)),
         "entries_extra": sorted(set(mine) - set(names)),
         "cells_compared": cells,
+        # Shipped rows without a drop reason: compared by outcome and final
+        # position only.
+        "shipped_cells_without_ending": without_ending,
         "plans_differing": differing_plans, "cells_differing": differing_cells,
         "maps_npz_equal": maps_equal, "samples_csv_equal": samples_equal,
         "identical": (not differing_plans and not differing_cells
