@@ -330,3 +330,20 @@ class UnreachableLoweringTest(unittest.TestCase):
         from regrasp_drake.learning.learning_phase import observe
         summary = observe(self.scenario, self.obj, self.ik).as_dict()
         self.assertEqual(summary["plan"]["deepest_reachable_h_down"], -0.03)
+
+
+class Table1ObjectsTest(unittest.TestCase):
+    """`table1 --objects`: a Table 1 object keeps its row and the paper's
+    figures; another object is numbered in order, without them."""
+
+    def test_rows_and_paper_figures(self):
+        from regrasp_drake.learning.table1 import format_markdown, run_table1
+        model, _ = load_weights(MODELS_DIR / "catch_mlp.pt")
+        rows = run_table1(load_scenario(), model, ik=ArmIk(),
+                          objects=["table1-row5", "table1-row3"],
+                          progress=None)
+        self.assertEqual([r["row"] for r in rows], [5, 3])
+        self.assertEqual([r["paper"]["trials"] for r in rows], [2, 3])
+        self.assertEqual([r["throws"] for r in rows], [2, 2])  # table1.md
+        text = format_markdown(rows)
+        self.assertIn("| 5 | (2) table1-row5 | 350 |", text)

@@ -39,9 +39,10 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
     rows = []
     first_throw = flight_predictor is not None or at_release
     paper = PAPER_TABLE1
-    if objects:
-        paper = [(k + 1, None, None, None, None, None)
-                 for k in range(len(objects))]
+    if objects:  # a Table 1 object keeps its row and the paper's figures
+        by_name = {f"table1-row{r[0]}": r for r in PAPER_TABLE1}
+        paper = [by_name.get(name, (k + 1, None, None, None, None, None))
+                 for k, name in enumerate(objects)]
     for (row, obj_id, density, com, time_s, trials), name in zip(
             paper, objects or [f"table1-row{r[0]}" for r in PAPER_TABLE1]):
         obj = resolve_object(name=name)
