@@ -348,8 +348,17 @@ def _cmd_train_flight(args) -> int:
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line, as every other refusal
+    of the command is (`--help` still shows the usage)."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} "
+                     "--help)\n")
+
+
 def make_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="regrasp-drake",
         description="Regrasp planning through throwing and catching (Drake).")
     sub = parser.add_subparsers(dest="command", required=True)

@@ -85,6 +85,20 @@ class TestCli(unittest.TestCase):
                 self.assertIn("--max-throws: got 1, expected an integer >= 2",
                               result.stderr)
 
+    def test_argument_errors_are_one_line(self):
+        for args, expected in (
+                (("catch", "--object", "table1-row2", "--h-catch", "abc",
+                  "--h-down", "0"), "argument --h-catch: invalid float value"),
+                (("learn", "--object", "table1-row2", "--search", "bogus"),
+                 "argument --search: invalid choice: 'bogus'"),
+                (("table1", "--maps-dir", "x", "--no-maps"),
+                 "argument --no-maps: not allowed with argument --maps-dir")):
+            result = _run(*args)
+            with self.subTest(args=args):
+                self.assertEqual(result.returncode, 2)
+                self.assertEqual(len(result.stderr.strip().splitlines()), 1)
+                self.assertIn(expected, result.stderr)
+
     def test_negative_seed_refused(self):
         result = _run("train", "--seed", "-1")
         self.assertEqual(result.returncode, 2)
