@@ -20,7 +20,6 @@ the sets differ.
 import regrasp_drake  # noqa: F401, I001 (first, see above)
 import argparse
 import json
-import subprocess
 import sys
 from pathlib import Path
 
@@ -28,6 +27,7 @@ import numpy as np
 
 from regrasp_drake.errors import InputError, check_output_path
 from regrasp_drake.grid import ending, read_rows
+from regrasp_drake.learning.dataset import git_version
 from regrasp_drake.paths import MODELS_DIR, REPO_DIR
 
 HERE = Path(__file__).parent
@@ -61,9 +61,7 @@ def _shown(path: Path) -> str:
         relative = Path(path).resolve().relative_to(REPO_DIR)
     except ValueError:
         return str(path)
-    commit = subprocess.run(["git", "-C", str(REPO_DIR), "rev-parse", "HEAD"],
-                            capture_output=True, text=True).stdout.strip()
-    return f"{relative} (commit {commit or 'unknown'})"
+    return f"{relative} (commit {git_version()})"
 
 
 def compare(generated: Path, shipped: Path) -> dict:

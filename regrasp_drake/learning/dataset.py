@@ -405,10 +405,12 @@ def _code_version() -> str:
                        + list((root / "sdf").rglob("*.*"))):
         digest.update(str(path.relative_to(root)).encode())
         digest.update(path.read_bytes())
-    return _git_version() + " sources-sha256:" + digest.hexdigest()[:16]
+    return git_version() + " sources-sha256:" + digest.hexdigest()[:16]
 
 
-def _git_version() -> str:
+def git_version() -> str:
+    """The repository's commit, with "+dirty" when its code or models have
+    uncommitted changes; "unknown" outside a git checkout."""
     try:
         commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO_DIR,
                                 capture_output=True, text=True, check=True)
