@@ -33,6 +33,7 @@ import argparse
 import json
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -80,8 +81,27 @@ def load_maps(variant: str) -> dict:
     path = HERE / variant / "maps.npz"
     if not path.is_file():
         return {}
-    with np.load(path) as d:
-        return {str(n): m for n, m in zip(d["objects"], d["caught"])}
+    try:
+        with np.load(path, allow_pickle=False) as d:
+            maps = {str(n): np.asarray(m, bool)
+                    for n, m in zip(d["objects"], d["caught"])}
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile) as e:
+        raise InputError(f"{path}: unreadable ({e}); expected the maps "
+                         "`regrasp-drake dataset` writes") from None
+    if any(m.shape != (10, 15) for m in maps.values()):
+        raise InputError(f"{path}: maps of shape other than (10, 15)")
+    return maps
+
+
+def _provenance(variant: str) -> dict:
+    path = HERE / variant / "provenance.json"
+    try:
+        prov = json.loads(path.read_text())
+        return {"generation_wall_s": float(prov["generation_wall_s"]),
+                "entries": int(prov["entries"])}
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise InputError(f"{path}: unreadable ({e!r}); expected the "
+                         "provenance `regrasp-drake dataset` writes") from None
 
 
 def network_cells(entries: list[str]) -> dict:
@@ -89,11 +109,16 @@ def network_cells(entries: list[str]) -> dict:
     entry's plan (stored by the shipped variant's run)."""
     model, _ = load_weights(MODELS_DIR / "catch_mlp.pt")
     samples = {}
-    csv = (HERE / "shipped" / "samples.csv").read_text().splitlines()
-    header = csv[0].split(",")
-    for line in csv[1:]:
-        row = dict(zip(header, line.split(",")))
-        samples[row["object"]] = [float(row[k]) for k in FEATURE_NAMES]
+    path = HERE / "shipped" / "samples.csv"
+    try:
+        csv = path.read_text().splitlines()
+        header = csv[0].split(",")
+        for line in csv[1:]:
+            row = dict(zip(header, line.split(",")))
+            samples[row["object"]] = [float(row[k]) for k in FEATURE_NAMES]
+    except (OSError, IndexError, KeyError, ValueError) as e:
+        raise InputError(f"{path}: unreadable ({e!r}); expected the samples "
+                         "`regrasp-drake dataset` writes") from None
     out = {}
     for entry in entries:
         if entry in samples:
@@ -118,7 +143,7 @@ def summarize(objects: list[str]) -> dict:
         done = [e for e in objects if e in maps and e in base]
         if not done:
             continue
-        prov = json.loads((HERE / variant / "provenance.json").read_text())
+        prov = _provenance(variant)
         agree = sum(int((maps[e] == base[e]).sum()) for e in done)
         chance = sum(150 * (p * q + (1 - p) * (1 - q)) for p, q in
                      ((maps[e].mean(), base[e].mean()) for e in done))
@@ -199,7 +224,11 @@ def main(argv=None) -> int:
         print(f"catch_timing: error: {HERE / 'shipped'}: no stored maps; "
               "expected the shipped variant's run (--run)", file=sys.stderr)
         return 2
-    result = summarize(objects)
+    try:
+        result = summarize(objects)
+    except InputError as e:
+        print(f"catch_timing: error: {e}", file=sys.stderr)
+        return 2
     for variant, r in result.items():
         t = r["training"]
         rows = ", ".join(

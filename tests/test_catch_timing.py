@@ -88,6 +88,22 @@ class CatchTimingTest(RefusalAssertions, unittest.TestCase):
         out = self.root / "no_dir" / "x.json"
         self.assertRefused(["--out", str(out)], "--out")
 
+    def test_a_corrupt_stored_file_is_refused(self):
+        here = self.root / "corrupt"
+        shutil.copytree(catch_timing.HERE / "shipped", here / "shipped")
+        old = catch_timing.HERE
+        catch_timing.HERE = here
+        try:
+            (here / "shipped" / "maps.npz").write_bytes(b"not a zip file")
+            self.assertRefused(["--out", str(self.root / "c.json")],
+                               "maps.npz", "unreadable")
+            shutil.copy(old / "shipped" / "maps.npz", here / "shipped")
+            (here / "shipped" / "provenance.json").write_text("{}")
+            self.assertRefused(["--out", str(self.root / "c.json")],
+                               "provenance.json", "generation_wall_s")
+        finally:
+            catch_timing.HERE = old
+
     def test_summary_writes_json_and_png(self):
         out = self.root / "summary.json"
         with contextlib.redirect_stdout(io.StringIO()):
