@@ -219,7 +219,13 @@ def main(argv=None) -> int:
     objects = training_objects()
     if args.run:
         for variant in VARIANTS:
-            run(variant, objects + TABLE1, args.workers)
+            try:
+                run(variant, objects + TABLE1, args.workers)
+            except subprocess.CalledProcessError as e:
+                print(f"catch_timing: error: variant {variant}: `regrasp-drake "
+                      f"dataset` exited with {e.returncode} (its message above)",
+                      file=sys.stderr)
+                return 2
     if not (HERE / "shipped" / "samples.csv").is_file():
         print(f"catch_timing: error: {HERE / 'shipped'}: no stored maps; "
               "expected the shipped variant's run (--run)", file=sys.stderr)
