@@ -12,18 +12,22 @@ Writes F (JSON, default benchmarks/catch_timing.json) and F's .png.
 --scenario benchmarks/scenarios/<variant>.yaml --out
 benchmarks/catch_timing/<variant>`, one variant after the other; an
 interrupted run resumes), about 10 min a variant with 2 workers. Without
---run it summarizes the stored results: each variant's maps.npz,
-provenance.json and samples.csv (the cells' rows are not kept).
+--run it summarizes the stored results: each variant's maps.npz and
+provenance.json (the cells' rows are not kept).
 
 Per variant: the wall time of its generation run (from its provenance.json,
 with the shipped variant's as the reference: run them one after the other on
 an otherwise idle machine for the ratio to mean anything); the catching cells
-of the training maps, how many cells agree with the shipped scenario's maps
-and how many two unrelated maps with the same catch rates would agree
-(p·q + (1 − p)(1 − q) per map); how many training maps catch at the shipped
-network's cell; and for each Table 1 object its catching cells, whether the
-network's cell catches and the throws the wavefront search would take from
-there (the watching throw included), counted on the map.
+of the training maps, how many cells agree with the shipped data set's maps
+(models/dataset, which the shipped variant's run reproduces) and how many
+two unrelated maps with the same catch rates would agree (p·q + (1 − p)(1 −
+q) per map); in how many training maps the shipped network's cell catches
+(its cell for the entry's plan in the shipped data set); and for each Table 1
+object its catching cells, whether the network's cell (the one its `table1`
+run started from) catches and the throws the wavefront search would take
+from there (the watching throw included), counted on the map. A variant run
+on more training objects than the 19 (`regrasp-drake dataset --objects …`
+into its directory) is also compared over all of them ("all_training").
 """
 
 # regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
@@ -105,25 +109,19 @@ def _provenance(variant: str) -> dict:
 
 
 def network_cells(entries: list[str]) -> dict:
-    """The shipped network's cell for each entry, from the features of the
-    entry's plan (stored by the shipped variant's run)."""
+    """The shipped network's cell for each training entry, from the features
+    of its plan in the shipped data set (models/dataset/plans: every entry,
+    labelled or not), and for each Table 1 object the cell its `table1` run
+    started from (models/results/table1.json)."""
     model, _ = load_weights(MODELS_DIR / "catch_mlp.pt")
-    samples = {}
-    path = HERE / "shipped" / "samples.csv"
-    try:
-        csv = path.read_text().splitlines()
-        header = csv[0].split(",")
-        for line in csv[1:]:
-            row = dict(zip(header, line.split(",")))
-            samples[row["object"]] = [float(row[k]) for k in FEATURE_NAMES]
-    except (OSError, IndexError, KeyError, ValueError) as e:
-        raise InputError(f"{path}: unreadable ({e!r}); expected the samples "
-                         "`regrasp-drake dataset` writes") from None
     out = {}
     for entry in entries:
-        if entry in samples:
-            _, (h_catch, h_down) = predict(model, samples[entry])
-            out[entry] = nearest_cell(h_catch, h_down)
+        plan = json.loads((MODELS_DIR / "dataset" / "plans" / f"{entry}.json")
+                          .read_text())
+        features = [float(plan["features"][k]) for k in FEATURE_NAMES]
+        out[entry] = nearest_cell(*predict(model, features)[1])
+    for row in json.loads((MODELS_DIR / "results" / "table1.json").read_text()):
+        out[row["object"]] = tuple(row["start_cell"])
     return out
 
 
@@ -134,38 +132,56 @@ def throws(caught: np.ndarray, start) -> int | None:
     return None if n is None else n + 1
 
 
+def compare(maps: dict, base: dict, entries: list[str], start: dict) -> dict:
+    """A variant's maps against the shipped ones over `entries`."""
+    agree = sum(int((maps[e] == base[e]).sum()) for e in entries)
+    chance = sum(150 * (p * q + (1 - p) * (1 - q)) for p, q in
+                 ((maps[e].mean(), base[e].mean()) for e in entries))
+    return {"maps": len(entries),
+            "catching_cells": int(sum(maps[e].sum() for e in entries)),
+            "shipped_catching_cells": int(sum(base[e].sum() for e in entries)),
+            "cells_agreeing_with_shipped": agree,
+            "agreement_by_chance": round(chance),
+            "network_cell_catches": int(sum(bool(maps[e][start[e]])
+                                            for e in entries)),
+            "shipped_network_cell_catches": int(sum(bool(base[e][start[e]])
+                                                    for e in entries))}
+
+
 def summarize(objects: list[str]) -> dict:
-    base = load_maps("shipped")
-    start = network_cells(objects + TABLE1)
+    """Per variant stored: its run's wall time, its maps against the shipped
+    data set's over `objects` ("training") and, when it has more training
+    maps, over all of them ("all_training"), and Table 1."""
+    with np.load(MODELS_DIR / "dataset" / "maps.npz") as d:
+        base = {str(n): m for n, m in zip(d["objects"], d["caught"])}
+    shipped = load_maps("shipped")
     result = {}
+    start = None
     for variant in VARIANTS:
         maps = load_maps(variant)
-        done = [e for e in objects if e in maps and e in base]
+        done = [e for e in objects if e in maps]
         if not done:
             continue
+        every = sorted(e for e in maps if e in base)
+        if start is None:
+            start = network_cells(sorted(base))
         prov = _provenance(variant)
-        agree = sum(int((maps[e] == base[e]).sum()) for e in done)
-        chance = sum(150 * (p * q + (1 - p) * (1 - q)) for p, q in
-                     ((maps[e].mean(), base[e].mean()) for e in done))
         result[variant] = {
             "scenario": None if VARIANTS[variant] is None
             else str(VARIANTS[variant].relative_to(Path(__file__).parent.parent)),
             "wall_s": prov["generation_wall_s"],
             "entries": prov["entries"],
-            "training": {
-                "maps": len(done),
-                "catching_cells": int(sum(maps[e].sum() for e in done)),
-                "cells_agreeing_with_shipped": agree,
-                "agreement_by_chance": round(chance),
-                "network_cell_catches": int(sum(
-                    bool(maps[e][start[e]]) for e in done if e in start)),
-            },
+            "training": compare(maps, base, done, start),
             "table1": {e: {"catching_cells": int(maps[e].sum()),
+                           "shipped_catching_cells": int(shipped[e].sum())
+                           if e in shipped else None,
                            "network_cell": list(start[e]),
                            "network_cell_catches": bool(maps[e][start[e]]),
                            "throws": throws(maps[e], start[e])}
                        for e in TABLE1 if e in maps},
         }
+        if len(every) > len(done):
+            result[variant]["all_training"] = compare(maps, base, every, start)
     ref = result.get("shipped", {}).get("wall_s")
     for r in result.values():
         r["wall_vs_shipped"] = round(r["wall_s"] / ref, 3) if ref else None
@@ -226,7 +242,7 @@ def main(argv=None) -> int:
                       f"dataset` exited with {e.returncode} (its message above)",
                       file=sys.stderr)
                 return 2
-    if not (HERE / "shipped" / "samples.csv").is_file():
+    if not (HERE / "shipped" / "maps.npz").is_file():
         print(f"catch_timing: error: {HERE / 'shipped'}: no stored maps; "
               "expected the shipped variant's run (--run)", file=sys.stderr)
         return 2
@@ -246,6 +262,14 @@ def main(argv=None) -> int:
               f"(chance {t['agreement_by_chance']}), network cell catches in "
               f"{t['network_cell_catches']}; Table 1 catching cells {rows} "
               "(*: the network's cell drops)")
+        if "all_training" in r:
+            a = r["all_training"]
+            print(f"{'':12s} all {a['maps']} training maps: "
+                  f"{a['catching_cells']} catching cells (shipped "
+                  f"{a['shipped_catching_cells']}), {a['cells_agreeing_with_shipped']}"
+                  f" agree (chance {a['agreement_by_chance']}), network cell "
+                  f"catches in {a['network_cell_catches']} (shipped "
+                  f"{a['shipped_network_cell_catches']})")
     args.out.write_text(json.dumps(result, indent=1) + "\n")
     plot(result, args.out.with_suffix(".png"))
     return 0
