@@ -60,8 +60,10 @@ class CatchTimingTest(RefusalAssertions, unittest.TestCase):
         caught[k, 0, :3] = ~caught[k, 0, :3]  # three cells flipped
         np.savez_compressed(variant / "maps.npz", objects=names, caught=caught)
         provenance = json.loads((here / "shipped" / "provenance.json").read_text())
-        (variant / "provenance.json").write_text(json.dumps(
-            provenance | {"generation_wall_s": 2 * provenance["generation_wall_s"]}))
+        first = provenance["runs"][0]
+        runs = [first | {"wall_s": 2 * first["wall_s"]}]
+        (variant / "provenance.json").write_text(
+            json.dumps(provenance | {"runs": runs}))
         old = catch_timing.HERE
         catch_timing.HERE = here
         try:
@@ -100,7 +102,7 @@ class CatchTimingTest(RefusalAssertions, unittest.TestCase):
             shutil.copy(old / "shipped" / "maps.npz", here / "shipped")
             (here / "shipped" / "provenance.json").write_text("{}")
             self.assertRefused(["--out", str(self.root / "c.json")],
-                               "provenance.json", "generation_wall_s")
+                               "provenance.json", "runs")
         finally:
             catch_timing.HERE = old
 
