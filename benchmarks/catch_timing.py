@@ -4,20 +4,23 @@ duration of its return (catch.return_s, shipped 0.3 s) changed, against the
 shipped scenario, on 19 training objects (every third of the data set's
 56, first catch point) and the five Table 1 objects.
 
-    .venv/bin/python benchmarks/catch_timing.py [--run] [--workers N] [--out F]
+    .venv/bin/python benchmarks/catch_timing.py [--run] [--workers N] [--dir DIR]
+                                                [--out F]
 
 Writes F (JSON, default benchmarks/catch_timing.json) and F's .png.
 
 --run computes the maps first (`regrasp-drake dataset --catch-points 1
---scenario benchmarks/scenarios/<variant>.yaml --out
-benchmarks/catch_timing/<variant>`, one variant after the other; an
-interrupted run resumes), about 10 min a variant with 2 workers. Without
---run it summarizes the stored results: each variant's maps.npz and
-provenance.json (the cells' rows are not kept).
+--scenario benchmarks/scenarios/<variant>.yaml --out DIR/<variant>`, one
+variant after the other; an interrupted run resumes), about 10 min a variant
+with 2 workers; give it a new DIR (the stored results are in
+benchmarks/catch_timing/, the default). Without --run it summarizes DIR:
+each variant's maps.npz and provenance.json (the stored results keep no
+cells' rows).
 
-Per variant: the wall time of its generation run (from its provenance.json,
-with the shipped variant's as the reference: run them one after the other on
-an otherwise idle machine for the ratio to mean anything); the catching cells
+Per variant: the wall time of its first generation run (from its
+provenance.json, with the shipped variant's as the reference: run them one
+after the other, uninterrupted, on an otherwise idle machine for the ratio to
+mean anything); the catching cells
 of the training maps, how many cells agree with the shipped data set's maps
 (models/dataset, which the shipped variant's run reproduces) and how many
 two unrelated maps with the same catch rates would agree (p·q + (1 − p)(1 −
@@ -70,19 +73,19 @@ def training_objects() -> list[str]:
     return names[::3]
 
 
-def run(variant: str, objects: list[str], workers: int) -> None:
+def run(here: Path, variant: str, objects: list[str], workers: int) -> None:
     cmd = [sys.executable, "-m", "regrasp_drake.cli", "dataset", "--objects",
            *objects, "--catch-points", "1", "--workers", str(workers),
-           "--out", str(HERE / variant)]
+           "--out", str(here / variant)]
     if VARIANTS[variant] is not None:
         cmd += ["--scenario", str(VARIANTS[variant])]
     subprocess.run(cmd, check=True)
 
 
-def load_maps(variant: str) -> dict:
+def load_maps(here: Path, variant: str) -> dict:
     """{entry: boolean map} of a variant's run (its maps.npz, written when
     the run completes; empty before)."""
-    path = HERE / variant / "maps.npz"
+    path = here / variant / "maps.npz"
     if not path.is_file():
         return {}
     try:
@@ -97,8 +100,8 @@ def load_maps(variant: str) -> dict:
     return maps
 
 
-def _provenance(variant: str) -> dict:
-    path = HERE / variant / "provenance.json"
+def _provenance(here: Path, variant: str) -> dict:
+    path = here / variant / "provenance.json"
     try:
         prov = json.loads(path.read_text())
         # The first run made the 24 maps every variant has; a later run
@@ -151,24 +154,24 @@ def compare(maps: dict, base: dict, entries: list[str], start: dict) -> dict:
                                                     for e in entries))}
 
 
-def summarize(objects: list[str]) -> dict:
+def summarize(objects: list[str], here: Path = HERE) -> dict:
     """Per variant stored: its run's wall time, its maps against the shipped
     data set's over `objects` ("training") and, when it has more training
     maps, over all of them ("all_training"), and Table 1."""
     with np.load(MODELS_DIR / "dataset" / "maps.npz") as d:
         base = {str(n): m for n, m in zip(d["objects"], d["caught"])}
-    shipped = load_maps("shipped")
+    shipped = load_maps(here, "shipped")
     result = {}
     start = None
     for variant in VARIANTS:
-        maps = load_maps(variant)
+        maps = load_maps(here, variant)
         done = [e for e in objects if e in maps]
         if not done:
             continue
         every = sorted(e for e in maps if e in base)
         if start is None:
             start = network_cells(sorted(base))
-        prov = _provenance(variant)
+        prov = _provenance(here, variant)
         result[variant] = {
             "scenario": None if VARIANTS[variant] is None
             else str(VARIANTS[variant].relative_to(Path(__file__).parent.parent)),
@@ -226,6 +229,9 @@ def main(argv=None) -> int:
     p.add_argument("--run", action="store_true",
                    help="compute the variants' maps first (resumable)")
     p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--dir", type=Path, default=HERE, metavar="DIR",
+                   help="where each variant's run lives, DIR/<variant> "
+                        "(default: the stored results)")
     p.add_argument("--out", type=Path, default=HERE.with_suffix(".json"))
     args = p.parse_args(argv)
     try:
@@ -237,20 +243,28 @@ def main(argv=None) -> int:
         return 2
     objects = training_objects()
     if args.run:
+        stored = [v for v in VARIANTS if (args.dir / v / "maps.npz").is_file()
+                  and not (args.dir / v / "cells").is_dir()]
+        if stored:
+            print(f"catch_timing: error: --dir: {args.dir / stored[0]} holds "
+                  "stored results without their cells' rows; expected a new "
+                  "directory (or a run of this script's) for --run",
+                  file=sys.stderr)
+            return 2
         for variant in VARIANTS:
             try:
-                run(variant, objects + TABLE1, args.workers)
+                run(args.dir, variant, objects + TABLE1, args.workers)
             except subprocess.CalledProcessError as e:
                 print(f"catch_timing: error: variant {variant}: `regrasp-drake "
                       f"dataset` exited with {e.returncode} (its message above)",
                       file=sys.stderr)
                 return 2
-    if not (HERE / "shipped" / "maps.npz").is_file():
-        print(f"catch_timing: error: {HERE / 'shipped'}: no stored maps; "
+    if not (args.dir / "shipped" / "maps.npz").is_file():
+        print(f"catch_timing: error: {args.dir / 'shipped'}: no stored maps; "
               "expected the shipped variant's run (--run)", file=sys.stderr)
         return 2
     try:
-        result = summarize(objects)
+        result = summarize(objects, args.dir)
     except InputError as e:
         print(f"catch_timing: error: {e}", file=sys.stderr)
         return 2

@@ -32,7 +32,7 @@ class CatchTimingTest(RefusalAssertions, unittest.TestCase):
 
     def test_the_shipped_variant_is_the_shipped_physics(self):
         # Its run recomputed the maps the data set and Table 1 ship.
-        maps = catch_timing.load_maps("shipped")
+        maps = catch_timing.load_maps(catch_timing.HERE, "shipped")
         objects = catch_timing.training_objects()
         self.assertEqual(len(objects), 19)
         self.assertEqual(sorted(maps), sorted(objects + catch_timing.TABLE1))
@@ -64,12 +64,7 @@ class CatchTimingTest(RefusalAssertions, unittest.TestCase):
         runs = [first | {"wall_s": 2 * first["wall_s"]}]
         (variant / "provenance.json").write_text(
             json.dumps(provenance | {"runs": runs}))
-        old = catch_timing.HERE
-        catch_timing.HERE = here
-        try:
-            result = catch_timing.summarize(objects)
-        finally:
-            catch_timing.HERE = old
+        result = catch_timing.summarize(objects, here)
         self.assertEqual(set(result), {"shipped", "return_0.6s"})
         ship, var = result["shipped"]["training"], result["return_0.6s"]["training"]
         self.assertEqual(ship["cells_agreeing_with_shipped"], 19 * 150)
@@ -87,24 +82,24 @@ class CatchTimingTest(RefusalAssertions, unittest.TestCase):
 
     def test_bad_input_is_refused(self):
         self.assertRefused(["--workers", "0"], "--workers", "0")
+        # --run would recompute into stored results (here a copy): refused.
+        stored = self.root / "stored"
+        shutil.copytree(catch_timing.HERE / "shipped", stored / "shipped")
+        self.assertRefused(["--run", "--dir", str(stored), "--out",
+                            str(self.root / "r.json")], "--dir", "stored results")
+        self.assertRefused(["--dir", str(self.root / "none")], "no stored maps")
         out = self.root / "no_dir" / "x.json"
         self.assertRefused(["--out", str(out)], "--out")
 
     def test_a_corrupt_stored_file_is_refused(self):
         here = self.root / "corrupt"
         shutil.copytree(catch_timing.HERE / "shipped", here / "shipped")
-        old = catch_timing.HERE
-        catch_timing.HERE = here
-        try:
-            (here / "shipped" / "maps.npz").write_bytes(b"not a zip file")
-            self.assertRefused(["--out", str(self.root / "c.json")],
-                               "maps.npz", "unreadable")
-            shutil.copy(old / "shipped" / "maps.npz", here / "shipped")
-            (here / "shipped" / "provenance.json").write_text("{}")
-            self.assertRefused(["--out", str(self.root / "c.json")],
-                               "provenance.json", "runs")
-        finally:
-            catch_timing.HERE = old
+        argv = ["--dir", str(here), "--out", str(self.root / "c.json")]
+        (here / "shipped" / "maps.npz").write_bytes(b"not a zip file")
+        self.assertRefused(argv, "maps.npz", "unreadable")
+        shutil.copy(catch_timing.HERE / "shipped" / "maps.npz", here / "shipped")
+        (here / "shipped" / "provenance.json").write_text("{}")
+        self.assertRefused(argv, "provenance.json", "runs")
 
     def test_summary_writes_json_and_png(self):
         out = self.root / "summary.json"
