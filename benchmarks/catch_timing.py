@@ -31,6 +31,9 @@ run started from) catches and the throws the wavefront search would take
 from there (the watching throw included), counted on the map. A variant run
 on more training objects than the 19 (`regrasp-drake dataset --objects …`
 into its directory) is also compared over all of them ("all_training").
+Over all the variants together ("every_variant"): the cells that catch in
+every one and in none, and per Table 1 object how many variants catch at
+each cell.
 """
 
 # regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
@@ -191,7 +194,34 @@ def summarize(objects: list[str], here: Path = HERE) -> dict:
     ref = result.get("shipped", {}).get("wall_s")
     for r in result.values():
         r["wall_vs_shipped"] = round(r["wall_s"] / ref, 3) if ref else None
+    if result:
+        result["every_variant"] = agreement_across(
+            {v: load_maps(here, v) for v in result}, objects, start)
     return result
+
+
+def agreement_across(maps: dict, objects: list[str], start: dict) -> dict:
+    """Over the variants' maps ({variant: {entry: map}}): the training cells
+    (of `objects`) that catch in every variant and in none, and for each
+    Table 1 object the same with the number of variants in which the
+    network's cell catches, and how many variants catch at each cell."""
+    def counts(entry):
+        return np.sum([m[entry] for m in maps.values()], axis=0)
+
+    n = len(maps)
+    train = np.array([counts(e) for e in objects])
+    out = {"variants": list(maps), "training_maps": len(objects),
+           "training_cells_catching_in_every_variant": int((train == n).sum()),
+           "training_cells_catching_in_none": int((train == 0).sum()),
+           "table1": {}}
+    for entry in TABLE1:
+        c = counts(entry)
+        out["table1"][entry] = {
+            "cells_catching_in_every_variant": int((c == n).sum()),
+            "cells_catching_in_none": int((c == 0).sum()),
+            "variants_in_which_the_network_cell_catches": int(c[start[entry]]),
+            "variants_catching_per_cell": c.tolist()}
+    return out
 
 
 def plot(result: dict, path: Path) -> None:
@@ -268,6 +298,7 @@ def main(argv=None) -> int:
     except InputError as e:
         print(f"catch_timing: error: {e}", file=sys.stderr)
         return 2
+    every = result.pop("every_variant")
     for variant, r in result.items():
         t = r["training"]
         rows = ", ".join(
@@ -287,8 +318,18 @@ def main(argv=None) -> int:
                   f" agree (chance {a['agreement_by_chance']}), network cell "
                   f"catches in {a['network_cell_catches']} (shipped "
                   f"{a['shipped_network_cell_catches']})")
-    args.out.write_text(json.dumps(result, indent=1) + "\n")
+    print(f"over all {len(every['variants'])} variants: "
+          f"{every['training_cells_catching_in_every_variant']} of "
+          f"{150 * every['training_maps']} training cells catch in every one, "
+          f"{every['training_cells_catching_in_none']} in none; Table 1 "
+          "(every / none / the network's cell in): " + ", ".join(
+              f"{t['cells_catching_in_every_variant']} / "
+              f"{t['cells_catching_in_none']} / "
+              f"{t['variants_in_which_the_network_cell_catches']}"
+              for t in every["table1"].values()))
     plot(result, args.out.with_suffix(".png"))
+    args.out.write_text(json.dumps(result | {"every_variant": every},
+                                   indent=1) + "\n")
     return 0
 
 

@@ -65,7 +65,14 @@ class CatchTimingTest(RefusalAssertions, unittest.TestCase):
         (variant / "provenance.json").write_text(
             json.dumps(provenance | {"runs": runs}))
         result = catch_timing.summarize(objects, here)
-        self.assertEqual(set(result), {"shipped", "return_0.6s"})
+        self.assertEqual(set(result), {"shipped", "return_0.6s", "every_variant"})
+        every = result["every_variant"]
+        self.assertEqual(every["variants"], ["shipped", "return_0.6s"])
+        # The three flipped cells catch in one variant: neither every nor none.
+        self.assertEqual(every["training_cells_catching_in_every_variant"]
+                         + every["training_cells_catching_in_none"], 19 * 150 - 3)
+        self.assertEqual(every["table1"]["table1-row4"]
+                         ["variants_in_which_the_network_cell_catches"], 0)
         ship, var = result["shipped"]["training"], result["return_0.6s"]["training"]
         self.assertEqual(ship["cells_agreeing_with_shipped"], 19 * 150)
         self.assertEqual(var["cells_agreeing_with_shipped"], 19 * 150 - 3)
