@@ -50,6 +50,7 @@ import numpy as np
 
 from regrasp_drake.errors import InputError, check_output_path
 from regrasp_drake.grid import nearest_cell
+from regrasp_drake.learning.dataset import SHAPE
 from regrasp_drake.learning.learning_phase import predict
 from regrasp_drake.learning.search import attempts_to_catch, wavefront_order
 from regrasp_drake.paths import MODELS_DIR
@@ -67,6 +68,7 @@ VARIANTS = {
     "lower_0.25": SCENARIOS / "lower_0.25.yaml",
 }
 TABLE1 = [f"table1-row{k}" for k in range(1, 6)]
+CELLS = SHAPE[0] * SHAPE[1]  # of a map
 
 
 def training_objects() -> list[str]:
@@ -98,8 +100,8 @@ def load_maps(here: Path, variant: str) -> dict:
     except (OSError, ValueError, KeyError, zipfile.BadZipFile) as e:
         raise InputError(f"{path}: unreadable ({e}); expected the maps "
                          "`regrasp-drake dataset` writes") from None
-    if any(m.shape != (10, 15) for m in maps.values()):
-        raise InputError(f"{path}: maps of shape other than (10, 15)")
+    if any(m.shape != SHAPE for m in maps.values()):
+        raise InputError(f"{path}: maps of shape other than {SHAPE}")
     return maps
 
 
@@ -117,7 +119,7 @@ def _provenance(here: Path, variant: str) -> dict:
                          "provenance `regrasp-drake dataset` writes") from None
 
 
-def network_cells(entries: list[str]) -> dict:
+def network_cells(entries) -> dict:
     """The shipped network's cell for each training entry, from the features
     of its plan in the shipped data set (models/dataset/plans: every entry,
     labelled or not), and for each Table 1 object the cell its `table1` run
@@ -144,7 +146,7 @@ def throws(caught: np.ndarray, start) -> int | None:
 def compare(maps: dict, base: dict, entries: list[str], start: dict) -> dict:
     """A variant's maps against the shipped ones over `entries`."""
     agree = sum(int((maps[e] == base[e]).sum()) for e in entries)
-    chance = sum(150 * (p * q + (1 - p) * (1 - q)) for p, q in
+    chance = sum(CELLS * (p * q + (1 - p) * (1 - q)) for p, q in
                  ((maps[e].mean(), base[e].mean()) for e in entries))
     return {"maps": len(entries),
             "catching_cells": int(sum(maps[e].sum() for e in entries)),
@@ -163,17 +165,15 @@ def summarize(objects: list[str], here: Path = HERE) -> dict:
     maps, over all of them ("all_training"), and Table 1."""
     with np.load(MODELS_DIR / "dataset" / "maps.npz") as d:
         base = {str(n): m for n, m in zip(d["objects"], d["caught"])}
-    shipped = load_maps(here, "shipped")
+    start = network_cells(sorted(base))
+    stored = {v: load_maps(here, v) for v in VARIANTS}
+    stored = {v: maps for v, maps in stored.items()
+              if any(e in maps for e in objects)}
+    shipped = stored.get("shipped", {})
     result = {}
-    start = None
-    for variant in VARIANTS:
-        maps = load_maps(here, variant)
+    for variant, maps in stored.items():
         done = [e for e in objects if e in maps]
-        if not done:
-            continue
         every = sorted(e for e in maps if e in base)
-        if start is None:
-            start = network_cells(sorted(base))
         prov = _provenance(here, variant)
         result[variant] = {
             "scenario": None if VARIANTS[variant] is None
@@ -195,26 +195,28 @@ def summarize(objects: list[str], here: Path = HERE) -> dict:
     for r in result.values():
         r["wall_vs_shipped"] = round(r["wall_s"] / ref, 3) if ref else None
     if result:
-        result["every_variant"] = agreement_across(
-            {v: load_maps(here, v) for v in result}, objects, start)
+        result["every_variant"] = agreement_across(stored, objects, start)
     return result
 
 
 def agreement_across(maps: dict, objects: list[str], start: dict) -> dict:
-    """Over the variants' maps ({variant: {entry: map}}): the training cells
-    (of `objects`) that catch in every variant and in none, and for each
-    Table 1 object the same with the number of variants in which the
-    network's cell catches, and how many variants catch at each cell."""
+    """Over the variants' maps ({variant: {entry: map}}), on the entries
+    every variant has: the training cells (of `objects`) that catch in every
+    variant and in none, and for each Table 1 object the same with the
+    number of variants in which the network's cell catches, and how many
+    variants catch at each cell."""
     def counts(entry):
         return np.sum([m[entry] for m in maps.values()], axis=0)
 
     n = len(maps)
+    common = set.intersection(*(set(m) for m in maps.values()))
+    objects = [e for e in objects if e in common]
     train = np.array([counts(e) for e in objects])
     out = {"variants": list(maps), "training_maps": len(objects),
            "training_cells_catching_in_every_variant": int((train == n).sum()),
            "training_cells_catching_in_none": int((train == 0).sum()),
            "table1": {}}
-    for entry in TABLE1:
+    for entry in (e for e in TABLE1 if e in common):
         c = counts(entry)
         out["table1"][entry] = {
             "cells_catching_in_every_variant": int((c == n).sum()),
@@ -242,10 +244,10 @@ def plot(result: dict, path: Path) -> None:
           label="cells agreeing with the shipped maps")
     b.bar(x + 0.2, [r["agreement_by_chance"] for r in t], 0.4,
           label="agreement of unrelated maps (same catch rates)")
-    b.set_ylim(0, 1.35 * 150 * t[0]["maps"])
+    b.set_ylim(0, 1.35 * CELLS * t[0]["maps"])
     b.set_title("Which cells catch")
     b.legend(loc="upper right", fontsize=8)
-    b.axhline(150 * t[0]["maps"], color="grey", lw=0.8)
+    b.axhline(CELLS * t[0]["maps"], color="grey", lw=0.8)
     for ax in (a, b):
         ax.set_xticks(x, names, rotation=20)
     fig.tight_layout()
@@ -320,7 +322,7 @@ def main(argv=None) -> int:
                   f"{a['shipped_network_cell_catches']})")
     print(f"over all {len(every['variants'])} variants: "
           f"{every['training_cells_catching_in_every_variant']} of "
-          f"{150 * every['training_maps']} training cells catch in every one, "
+          f"{CELLS * every['training_maps']} training cells catch in every one, "
           f"{every['training_cells_catching_in_none']} in none; Table 1 "
           "(every / none / the network's cell in): " + ", ".join(
               f"{t['cells_catching_in_every_variant']} / "
