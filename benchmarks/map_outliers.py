@@ -53,6 +53,7 @@ from pathlib import Path
 import numpy as np
 
 from regrasp_drake.errors import InputError, check_output_path, field_error
+from regrasp_drake import grid
 from regrasp_drake.grid import H_CATCH_VALUES, H_DOWN_VALUES, ending
 from regrasp_drake.learning.dataset import object_of
 from regrasp_drake.learning.search import (
@@ -101,22 +102,11 @@ def training_typicality(names, maps) -> dict:
 
 
 def read_rows(path: Path) -> dict:
-    """{cell: row} of a map's JSON lines (grid's and the data set's
-    format); a missing or malformed file is refused in one line."""
-    if not path.is_file():
-        raise field_error("map", str(path), "an existing JSON-lines map")
-    rows = {}
-    for n, line in enumerate(path.read_text().splitlines(), 1):
-        try:
-            row = json.loads(line)
-            cell = tuple(int(k) for k in row["cell"])
-            row["outcome"]
-        except (ValueError, KeyError, TypeError):
-            raise field_error(f"{path} line {n}", line[:60],
-                              "a JSON object with 'cell' and 'outcome'") from None
-        rows[cell] = row
+    """{cell: row} of a whole map's JSON lines (grid.read_rows); a missing
+    file or one without all 150 cells is refused in one line."""
+    rows = grid.read_rows(path) if path.is_file() else {}
     if len(rows) != SHAPE[0] * SHAPE[1]:
-        raise field_error("map", str(path),
+        raise field_error("map", str(path), f"a JSON-lines map of all "
                           f"{SHAPE[0] * SHAPE[1]} cells (got {len(rows)})")
     return rows
 

@@ -49,6 +49,19 @@ class TypicalityTest(unittest.TestCase):
         self.assertAlmostEqual(out["b"], -1.0)
 
 
+class ReadRowsTest(unittest.TestCase):
+    def test_a_map_without_all_its_cells_is_refused(self):
+        with tempfile.TemporaryDirectory() as d:
+            path = Path(d) / "m.jsonl"
+            path.write_text("".join(json.dumps(
+                {"cell": [0, j], "outcome": "caught"}) + "\n" for j in range(3)))
+            for bad in (path, Path(d) / "missing.jsonl"):
+                with self.assertRaises(ValueError) as e:
+                    map_outliers.read_rows(bad)
+                self.assertIn("150 cells", str(e.exception))
+                self.assertIn(str(bad), str(e.exception))
+
+
 class EndingPriorTest(unittest.TestCase):
     def test_the_ending_points_to_the_maps_that_end_so(self):
         a_caught, a_end = corner_map((0, 0), "on_arm")
