@@ -1,5 +1,6 @@
 """The data set: labels, generation, resuming after a kill, determinism."""
 
+import importlib.util
 import json
 import os
 import shutil
@@ -243,6 +244,37 @@ class GenerateTest(unittest.TestCase):
         generate(OBJECTS, self.root / "two", workers=2, only=COARSE,
                  progress=False)
         self.assertEqual(_rows(self.root / "two"), _rows(self.root / "serial"))
+
+    @unittest.skipUnless(importlib.util.find_spec("ray"),
+                         "Ray is not installed (pip install '.[ray]')")
+    def test_ray_same_rows_and_resumes(self):
+        """--backend ray on a local Ray of 2 CPUs (RAY_ADDRESS unset): the
+        serial run's rows and plans; an entry already in the directory is
+        kept, not computed again."""
+        out = self.root / "ray"
+        kept = OBJECTS[0]
+        for sub, suffix in (("plans", "json"), ("cells", "jsonl")):
+            (out / sub).mkdir(parents=True)
+            shutil.copy(self.root / "serial" / sub / f"{kept}.{suffix}",
+                        out / sub)
+        address = os.environ.pop("RAY_ADDRESS", None)
+        try:
+            provenance = generate(OBJECTS, out, workers=2, backend="ray",
+                                  only=COARSE, progress=False)
+        finally:
+            if address is not None:
+                os.environ["RAY_ADDRESS"] = address
+        self.assertEqual(provenance["entries_computed"], 1)
+        self.assertEqual(provenance["runs"][-1]["backend"], "ray")
+        self.assertEqual(_rows(out), _rows(self.root / "serial"))
+        for name in OBJECTS:
+            self.assertEqual(
+                (out / "plans" / f"{name}.json").read_text(),
+                (self.root / "serial" / "plans" / f"{name}.json").read_text())
+        self.assertEqual((out / "samples.csv").read_text(),
+                         (self.root / "serial" / "samples.csv").read_text())
+        import ray
+        self.assertFalse(ray.is_initialized())  # the local Ray is shut down
 
     def test_killed_and_resumed_same_rows(self):
         out = self.root / "killed"

@@ -40,6 +40,7 @@ A data set is resumed only under the scenario it was begun with
 import csv
 import hashlib
 import json
+import logging
 import multiprocessing
 import os
 import subprocess
@@ -144,10 +145,7 @@ def _object_task(args):
 
 def _write_json(path: Path, data) -> None:
     """Writes atomically (a kill leaves the old file or the new one)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(data, indent=1) + "\n")
-    os.replace(tmp, path)
+    _write_text(path, json.dumps(data, indent=1) + "\n")
 
 
 def _object_done(out_dir: Path, name: str, only) -> bool:
@@ -261,24 +259,80 @@ def _run_processes(tasks, workers):
         yield from pool.imap_unordered(_object_task, tasks)
 
 
+def _remote_entry(scenario_text, entry, only):
+    """One entry's _object_task on a Ray worker, in a scratch directory of
+    its own machine (a cluster's nodes share no filesystem with the driver):
+    returns the entry, its plan file's text and its cells file's text (None
+    for an entry with no usable catch point), for the driver to write."""
+    import tempfile
+    with tempfile.TemporaryDirectory() as scratch:
+        scratch = Path(scratch)
+        (scratch / "cells").mkdir()
+        scenario_path = None
+        if scenario_text is not None:
+            scenario_path = scratch / "scenario.yaml"
+            scenario_path.write_text(scenario_text)
+        _object_task((None if scenario_path is None else str(scenario_path),
+                      entry, str(scratch), only))
+        cells = scratch / "cells" / f"{entry}.jsonl"
+        return (entry, (scratch / "plans" / f"{entry}.json").read_text(),
+                cells.read_text() if cells.exists() else None)
+
+
+def _write_text(path: Path, text: str) -> None:
+    """Writes atomically (a kill leaves the old file or the new one)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
 def _run_ray(tasks, workers):
+    """The entries on Ray: the cluster at RAY_ADDRESS, or, unset, a local Ray
+    of `workers` CPUs started (and shut down) here. Each entry is computed
+    whole on a worker and written here when it returns, its cells file
+    before its plan file (an entry counts as done only once both are), so
+    a killed run resumes as with processes: finished entries kept, the
+    others computed again."""
     try:
         import ray
     except ImportError:
         raise InputError("--backend ray: Ray is not installed (pip install "
                          "'regrasp-drake[ray]')") from None
-    # RAY_ADDRESS names the cluster; unset, a local Ray starts.
     from regrasp_drake import numerics
+    address = os.environ.get("RAY_ADDRESS") or None
     # The workers of a cluster do not inherit this process's environment:
     # pass them the pinned kernels (numerics.py) explicitly.
     pinned = {k: os.environ[k] for k in numerics.VARIABLES if k in os.environ}
-    ray.init(address=os.environ.get("RAY_ADDRESS"), ignore_reinit_error=True,
-             log_to_driver=False, runtime_env={"env_vars": pinned})
-    remote = ray.remote(num_cpus=1)(_object_task)
-    pending = [remote.remote(t) for t in tasks]
-    while pending:
-        ready, pending = ray.wait(pending, num_returns=1)
-        yield ray.get(ready[0])
+    started = not ray.is_initialized()
+    if started:
+        local = {} if address else {"num_cpus": workers,
+                                    "include_dashboard": False}
+        ray.init(address=address, log_to_driver=False,
+                 logging_level=logging.ERROR,  # not Ray's start-up notes
+                 runtime_env={"env_vars": pinned}, **local)
+    try:
+        remote = ray.remote(num_cpus=1, max_retries=0)(_remote_entry)
+        scenarios = {}
+        pending = []
+        for scenario_path, entry, out_dir, only in tasks:
+            if scenario_path not in scenarios:
+                scenarios[scenario_path] = (None if scenario_path is None
+                                            else Path(scenario_path).read_text())
+            pending.append((remote.remote(scenarios[scenario_path], entry, only),
+                            Path(out_dir)))
+        waiting = {ref: out_dir for ref, out_dir in pending}
+        while waiting:
+            ready, _ = ray.wait(list(waiting), num_returns=1)
+            out_dir = waiting.pop(ready[0])
+            entry, plan_text, cells_text = ray.get(ready[0])
+            if cells_text is not None:
+                _write_text(out_dir / "cells" / f"{entry}.jsonl", cells_text)
+            _write_text(out_dir / "plans" / f"{entry}.json", plan_text)
+            yield entry
+    finally:
+        if started:
+            ray.shutdown()
 
 
 # ---- assembly ----------------------------------------------------------------
