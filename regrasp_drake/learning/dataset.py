@@ -288,8 +288,9 @@ def _write_text(path: Path, text: str) -> None:
 
 
 def _run_ray(tasks, workers):
-    """The entries on Ray: the cluster at RAY_ADDRESS, or, unset, a local Ray
-    of `workers` CPUs started (and shut down) here. Each entry is computed
+    """The entries on Ray: the cluster at RAY_ADDRESS (its own CPUs set the
+    parallelism), or, unset, a local Ray of `workers` CPUs started (and shut
+    down) here. Each entry is computed
     whole on a worker and written here when it returns, its cells file
     before its plan file (an entry counts as done only once both are), so
     a killed run resumes as with processes: finished entries kept, the
@@ -312,16 +313,17 @@ def _run_ray(tasks, workers):
                  logging_level=logging.ERROR,  # not Ray's start-up notes
                  runtime_env={"env_vars": pinned}, **local)
     try:
-        remote = ray.remote(num_cpus=1, max_retries=0)(_remote_entry)
-        scenarios = {}
-        pending = []
+        # A task lost with its node is retried (Ray's default): an entry's
+        # result does not depend on where or how often it is computed.
+        remote = ray.remote(num_cpus=1)(_remote_entry)
+        texts = {}  # scenario file -> its text, read once
+        waiting = {}  # task -> the output directory of its entry
         for scenario_path, entry, out_dir, only in tasks:
-            if scenario_path not in scenarios:
-                scenarios[scenario_path] = (None if scenario_path is None
-                                            else Path(scenario_path).read_text())
-            pending.append((remote.remote(scenarios[scenario_path], entry, only),
-                            Path(out_dir)))
-        waiting = {ref: out_dir for ref, out_dir in pending}
+            if scenario_path not in texts:
+                texts[scenario_path] = (None if scenario_path is None
+                                        else Path(scenario_path).read_text())
+            waiting[remote.remote(texts[scenario_path], entry, only)] = \
+                Path(out_dir)
         while waiting:
             ready, _ = ray.wait(list(waiting), num_returns=1)
             out_dir = waiting.pop(ready[0])
