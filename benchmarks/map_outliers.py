@@ -73,9 +73,8 @@ DATASET_DIR = MODELS_DIR / "dataset"
 RESULTS_DIR = MODELS_DIR / "results"
 FAILURE_MODES_DIR = ROOT / "benchmarks" / "failure_modes"
 FIXED_START = (7, 2)  # as benchmarks/search_prior.py
-# grid.ending's keys, in a fixed order (the index of E_m's first axis).
-ENDING_KEYS = ("caught", "below_palm", "near_ground", "in_fingers", "on_arm",
-               "loose", "failed", "other")
+# grid.ending's keys (the index of E_m's first axis).
+ENDING_KEYS = tuple(grid.ENDINGS)
 ENDING_EPS = (EPS, 0.1, 0.05)  # the ending prior's EPS_k tried (all k alike)
 
 
