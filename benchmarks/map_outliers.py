@@ -60,6 +60,7 @@ from regrasp_drake.learning.search import (
     EPS,
     SHAPE,
     SIGMA_CELLS,
+    _map_prior_cells,
     attempts_to_catch,
     load_prior_maps,
     map_prior_order,
@@ -143,18 +144,10 @@ def ending_prior_order(start_cell, prior_maps, prior_endings, observed,
     P = smooth(maps, sigma_cells)
     onehot = np.stack([endings == k for k in range(len(ENDING_KEYS))], axis=1)
     E = smooth(onehot.reshape(-1, *SHAPE), sigma_cells).reshape(onehot.shape)
-    untried = wavefront_order(start_cell)  # the tie rule, as the map prior
-    w = np.ones(len(maps))
-    cell = untried[0]
-    while True:
-        yield cell
-        untried.remove(cell)
-        if not untried:
-            return
-        w *= eps + (1 - 2 * eps) * E[:, observed[cell], cell[0], cell[1]]
-        w /= w.sum()
-        posterior = np.tensordot(w, P, axes=1)
-        cell = max(untried, key=lambda c: round(float(posterior[c]), 9))
+    # The map prior's generator, reading the failure's ending at each cell.
+    return _map_prior_cells(wavefront_order(start_cell), P, eps,
+                            np.ones(len(maps)),
+                            lambda c: E[:, observed[c], c[0], c[1]])
 
 
 def training_endings(names, maps, cells_dir: Path) -> np.ndarray:

@@ -259,9 +259,11 @@ def feature_weighted_order(start_cell: Cell, prior_maps, prior_features,
 
 
 def _map_prior_cells(order: list[Cell], P: np.ndarray, eps: float,
-                     w: np.ndarray):
+                     w: np.ndarray, observed=None):
     """The generator behind map_prior_order (its checks run when it is
-    called, not at the first next())."""
+    called, not at the first next()). observed(cell), optional: each map's
+    probability of what was seen at a failed cell (default 1 - P: that it
+    did not catch)."""
     untried = list(order)       # kept in wavefront order: max() takes the
     w = w.copy()                # first of equal cells, the tie rule
     cell = order[0]
@@ -270,7 +272,9 @@ def _map_prior_cells(order: list[Cell], P: np.ndarray, eps: float,
         untried.remove(cell)
         if not untried:
             return
-        w *= eps + (1 - 2 * eps) * (1 - P[:, cell[0], cell[1]])
+        seen = (1 - P[:, cell[0], cell[1]] if observed is None
+                else observed(cell))
+        w *= eps + (1 - 2 * eps) * seen
         w /= w.sum()  # no underflow after many failures (each factor >= eps)
         posterior = np.tensordot(w, P, axes=1)
         cell = max(untried, key=lambda c: round(float(posterior[c]), 9))
