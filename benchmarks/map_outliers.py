@@ -261,8 +261,15 @@ def main(argv=None) -> int:
         out = Path(args.out)
         check_output_path("--out", out)
         names, maps = load_prior_maps(DATASET_DIR / "maps.npz")
-        table1 = json.loads((RESULTS_DIR / "table1.json").read_text())
-        starts = {r["row"]: tuple(r["start_cell"]) for r in table1}
+        path = RESULTS_DIR / "table1.json"
+        try:
+            starts = {r["row"]: tuple(r["start_cell"])
+                      for r in json.loads(path.read_text())}
+        except (OSError, ValueError, KeyError, TypeError) as e:
+            raise field_error("table1 results", str(path),
+                              "`regrasp-drake table1 --json` output, each row "
+                              f"with 'row' and 'start_cell' ({type(e).__name__})"
+                              ) from None
         table1_maps, table1_endings = {}, {}
         for row in sorted(starts):
             stored = caught_map(
