@@ -1,7 +1,16 @@
 """One kind of error for bad user input, with a message that fits on one line."""
 
 import os
+import reprlib
 from pathlib import Path
+
+# A quoted value is cut to this many characters: a message stays one short
+# line even for a huge value, and quoting it never expands it.
+QUOTE_CHARS = 60
+_REPR = reprlib.Repr()
+_REPR.maxlevel, _REPR.maxdict = 3, 4
+_REPR.maxtuple = _REPR.maxlist = _REPR.maxset = _REPR.maxfrozenset = 6
+_REPR.maxstring = _REPR.maxlong = _REPR.maxother = QUOTE_CHARS
 
 
 class InputError(ValueError):
@@ -12,9 +21,20 @@ class InputError(ValueError):
     """
 
 
+def quote(value) -> str:
+    """repr(value) in at most QUOTE_CHARS characters (a long one cut in the
+    middle with "..."), computed without expanding a large value."""
+    text = _REPR.repr(value).replace("\n", " ")
+    if len(text) <= QUOTE_CHARS:
+        return text
+    half = (QUOTE_CHARS - 3) // 2
+    return text[:half] + "..." + text[-half:]
+
+
 def field_error(field: str, value, expected: str) -> InputError:
-    """Returns the InputError for `field` holding `value` where `expected` was."""
-    return InputError(f"{field}: got {value!r}, expected {expected}")
+    """Returns the InputError for `field` holding `value` (quoted) where
+    `expected` was."""
+    return InputError(f"{field}: got {quote(value)}, expected {expected}")
 
 
 def check_output_path(flag: str, path, *, makes_directory: bool = False) -> None:

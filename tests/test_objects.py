@@ -338,7 +338,7 @@ class TestObjectFiles(unittest.TestCase):
             ),
             "bad set": ("set: train", "set: spare", "objects[0].set"),
             "duplicate name": ("name: other", "name: mine", "objects[1].name"),
-            "not YAML": ("objects:", "objects: {", "not YAML"),
+            "not YAML": ("objects:", "objects: {", "not valid YAML"),
         }
         for what, (old, new, field) in cases.items():
             with self.subTest(what):

@@ -5,17 +5,28 @@ One typed dataclass tree, loaded from YAML with pydrake's `yaml_load_typed`
 field: `check_schema`), then range-checked field by field.
 The defaults below are the shipped scenario; a scenario file need only name
 the fields it changes.
+
+Bounds (`validate`): each field's range is in validate; and for every field,
+whatever its section: every number finite; every arm joint angle (a list of
+6 named `*_q_rad`, or a list of such lists) within the PUMA 560's joint
+limits read from sdf/puma560.sdf (`arm_joint_limits`); the throw's knot
+times increasing from 0, at most 10 s. The file is read within the limits
+of regrasp_drake/input_files.py (size, nesting, aliases, duplicate keys);
+`1e5` is a number.
 """
 
 import dataclasses as dc
 import math
+import re
 import typing
 from pathlib import Path
 
 import yaml
 from pydrake.common.yaml import yaml_load_typed
 
-from regrasp_drake.errors import InputError, field_error
+from regrasp_drake.errors import InputError, field_error, quote
+from regrasp_drake.input_files import load_yaml
+from regrasp_drake.world.robot import arm_joint_limits
 
 
 @dc.dataclass
@@ -198,8 +209,30 @@ def _in_range(field, value, lo, hi, unit=""):
         raise field_error(field, value, f"a number in [{lo}, {hi}]{unit}")
 
 
+def _check_generic(value, field: str = "") -> None:
+    """The checks of every field (module docstring): finite numbers, arm
+    joint angles within the PUMA's limits."""
+    if dc.is_dataclass(value):
+        for f in dc.fields(value):
+            name = f"{field}.{f.name}" if field else f.name
+            _check_generic(getattr(value, f.name), name)
+    elif isinstance(value, float) and not math.isfinite(value):
+        raise field_error(field, value, "a finite number")
+    elif isinstance(value, list):
+        for i, item in enumerate(value):
+            _check_generic(item, f"{field}[{i}]")
+        named = re.sub(r"(\[\d+\])+$", "", field)
+        if named.endswith("_q_rad") and not any(isinstance(v, list) for v in value):
+            if len(value) != 6:
+                raise field_error(field, value, "6 joint angles")
+            for i, (q, (lo, hi)) in enumerate(zip(value, arm_joint_limits())):
+                _in_range(f"{field}[{i}]", q, lo, hi,
+                          f" rad (joint{i + 1}'s limits in puma560.sdf)")
+
+
 def validate(s: Scenario) -> Scenario:
     """Checks every field's range; returns `s` or raises InputError."""
+    _check_generic(s)
     _in_range("time_step_s", s.time_step_s, 1e-5, 5e-3, " s")
     _in_range("gravity_m_per_s2", s.gravity_m_per_s2, 0.0, 30.0, " m/s²")
     c = s.contact
@@ -223,10 +256,10 @@ def validate(s: Scenario) -> Scenario:
     if len(t.knot_times_s) < 2 or len(t.knot_times_s) != len(t.knot_q_rad):
         raise field_error("throw.knot_times_s", t.knot_times_s,
                           "at least 2 times, one per entry of throw.knot_q_rad")
-    if t.knot_times_s[0] != 0.0 or any(
-            b <= a for a, b in zip(t.knot_times_s, t.knot_times_s[1:])):
+    if t.knot_times_s[0] != 0.0 or t.knot_times_s[-1] > 10.0 or not all(
+            b > a for a, b in zip(t.knot_times_s, t.knot_times_s[1:])):
         raise field_error("throw.knot_times_s", t.knot_times_s,
-                          "increasing times starting at 0")
+                          "increasing times starting at 0, at most 10 s")
     for i, q in enumerate(t.knot_q_rad):
         if len(q) != 6:
             raise field_error(f"throw.knot_q_rad[{i}]", q, "6 joint angles")
@@ -302,17 +335,9 @@ def load_scenario(path: str | Path | None = None) -> Scenario:
     if path is None:
         return validate(Scenario())
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise field_error("--scenario", str(path), "an existing YAML file")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        problem = getattr(e, "problem", None) or str(e).splitlines()[0]
-        raise InputError(f"{path}: not valid YAML{where}: {problem}") from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise InputError(f"{path}: cannot be read: {e}") from None
+    data = load_yaml(path, "YAML scenario file")
     if data is None:  # an empty file (or only comments): the defaults
         scenario = Scenario()
     else:
@@ -322,9 +347,11 @@ def load_scenario(path: str | Path | None = None) -> Scenario:
         except InputError as e:
             raise InputError(f"{path}: {e}") from None
         try:
-            scenario = yaml_load_typed(schema=Scenario, filename=str(path))
+            # The data as parsed above (1e5 a number), not the file again.
+            scenario = yaml_load_typed(schema=Scenario,
+                                       data=yaml.safe_dump(data))
         except Exception as e:  # pydrake: RuntimeError/TypeError/yaml errors.
-            first = (str(e).strip().splitlines()[0] if str(e).strip()
+            first = (str(e).strip().splitlines()[0][:200] if str(e).strip()
                      else repr(e))
             raise InputError(f"{path}: {first}") from None
     try:
@@ -344,11 +371,14 @@ def check_schema(value, schema, field: str) -> None:
                               "a mapping of field: value")
         hints = typing.get_type_hints(schema)
         for key, item in value.items():
-            name = f"{field}.{key}" if field else str(key)
             if key not in hints:
+                shown = (key if isinstance(key, str) and len(key) <= 64
+                         else quote(key))
+                name = f"{field}.{shown}" if field else shown
                 raise InputError(
                     f"{name}: unknown field, expected one of "
                     f"{', '.join(hints)}")
+            name = f"{field}.{key}" if field else str(key)
             check_schema(item, hints[key], name)
     elif typing.get_origin(schema) is list:
         (inner,) = typing.get_args(schema)

@@ -33,6 +33,21 @@ same file's ``geometries``), ``density`` (kg/m³, the object's mean density,
 the feature d_obj), ``h_cm`` and ``r_cm`` (m). Every key listed is required,
 unknown keys are refused.
 
+Bounds (what a PUMA 560 with this hand can throw; anything else is refused):
+  - ``name``: 1 to 64 letters, digits and ``._+-``, starting with a letter or
+    digit (it names files, e.g. ``grid-<name>.jsonl``);
+  - lengths (``radius``, ``length``, each ``size``): SIZE_RANGE_M, 1 mm to
+    0.3 m; each ``center`` coordinate within ±MAX_CENTER_M (0.3 m);
+  - at most MAX_PIECES pieces per geometry, MAX_GEOMETRIES geometries and
+    MAX_OBJECTS objects per file;
+  - ``density``: DENSITY_RANGE, 20 (rigid foam) to 20 000 kg/m³ (tungsten);
+  - mass (density × volume): MASS_RANGE_KG, 1 g to 2.5 kg (the PUMA 560's
+    rated payload);
+  - ``h_cm``, ``r_cm``: the centre of mass inside the body (and a ballast
+    that can put it there, below).
+The file itself is read within the limits of regrasp_drake/input_files.py
+(size, nesting, aliases, duplicate keys, finite numbers).
+
 Mass distribution. mass = density × volume (the pieces' summed volume). When
 the centre of mass differs from the pieces' centroid, the body is made of a
 base material of uniform density ``base_density`` over all pieces plus one
@@ -57,10 +72,10 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
+import re
 from pathlib import Path
 
 import numpy as np
-import yaml
 from pydrake.geometry import (
     AddContactMaterial,
     Box,
@@ -75,7 +90,8 @@ from pydrake.multibody.plant import CoulombFriction, MultibodyPlant
 from pydrake.multibody.tree import RigidBody, RotationalInertia, SpatialInertia
 from pydrake.solvers import ClarabelSolver, MathematicalProgram
 
-from regrasp_drake.errors import InputError, field_error
+from regrasp_drake.errors import InputError, field_error, quote
+from regrasp_drake.input_files import load_yaml
 
 CATALOGUE_PATH = (
     Path(__file__).resolve().parents[2] / "sdf" / "objects" / "catalogue.yaml"
@@ -83,6 +99,15 @@ CATALOGUE_PATH = (
 
 MIN_BASE_DENSITY = 20.0  # kg/m³, the lightest base material (rigid foam).
 MAX_BALLAST_DENSITY = 20_000.0  # kg/m³, a little above tungsten (19 300).
+# Physical bounds of an object (module docstring).
+SIZE_RANGE_M = (0.001, 0.3)
+MAX_CENTER_M = 0.3
+MAX_PIECES = 16
+MAX_GEOMETRIES = 100
+MAX_OBJECTS = 1000
+DENSITY_RANGE = (MIN_BASE_DENSITY, MAX_BALLAST_DENSITY)  # kg/m³
+MASS_RANGE_KG = (0.001, 2.5)
+_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+-]{0,63}")
 
 SETS = ("train", "test", "holdout")
 AXES = {"x": 0, "y": 1, "z": 2}
@@ -356,15 +381,7 @@ def load_object_file(path: Path | str) -> list[ObjectSpec]:
     """The objects of an object file (format in the module docstring), in file
     order. Raises InputError naming the file and the field on bad input."""
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as e:
-        raise field_error("object file", str(path), f"a readable file ({e.strerror})")
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        problem = str(e).replace("\n", " ")
-        raise field_error(str(path), "not YAML", f"a YAML file ({problem})")
+    data = load_yaml(path, "YAML object file")
     try:
         return _parse_file(data)
     except InputError as e:
@@ -403,13 +420,23 @@ def resolve_object(
 def _parse_file(data) -> list[ObjectSpec]:
     data = _mapping(data, "file", ("geometries", "objects"))
     geometries_data = _mapping(data["geometries"], "geometries")
+    if len(geometries_data) > MAX_GEOMETRIES:
+        raise field_error(
+            "geometries",
+            f"{len(geometries_data)} geometries",
+            f"at most {MAX_GEOMETRIES}",
+        )
     geometries = {
-        name: _parse_geometry(value, f"geometries.{name}")
+        name: _parse_geometry(value, f"geometries.{_key(name)}")
         for name, value in geometries_data.items()
     }
     objects = data["objects"]
     if not isinstance(objects, list) or not objects:
         raise field_error("objects", objects, "a non-empty list of objects")
+    if len(objects) > MAX_OBJECTS:
+        raise field_error(
+            "objects", f"{len(objects)} objects", f"at most {MAX_OBJECTS}"
+        )
     specs, names = [], set()
     for i, item in enumerate(objects):
         spec = _parse_object(item, f"objects[{i}]", geometries)
@@ -418,6 +445,11 @@ def _parse_file(data) -> list[ObjectSpec]:
         names.add(spec.name)
         specs.append(spec)
     return specs
+
+
+def _key(name) -> str:
+    """A mapping key as it appears in a field's name (cut when long)."""
+    return name if isinstance(name, str) and len(name) <= 64 else quote(name)
 
 
 def _mapping(value, field: str, keys: tuple[str, ...] | None = None) -> dict:
@@ -437,27 +469,28 @@ def _check_keys(value: dict, field: str, required, optional=()) -> None:
         if key not in required and key not in optional:
             allowed = ", ".join(tuple(required) + tuple(optional))
             raise field_error(
-                f"{field}.{key}", value[key], f"no such key (keys: {allowed})"
+                f"{field}.{_key(key)}", value[key], f"no such key (keys: {allowed})"
             )
     for key in required:
         if key not in value:
             raise field_error(f"{field}.{key}", None, f"a value (missing key {key!r})")
 
 
-def _number(value, field: str, positive: bool = False) -> float:
+def _number(value, field: str, bounds=(-math.inf, math.inf), unit="") -> float:
+    """`value` as a float in [lo, hi] = bounds."""
     ok = isinstance(value, (int, float)) and not isinstance(value, bool)
-    if ok and math.isfinite(value) and (value > 0 or not positive):
+    if ok and math.isfinite(value) and bounds[0] <= value <= bounds[1]:
         return float(value)
-    raise field_error(
-        field, value, "a positive number" if positive else "a finite number"
-    )
+    if math.isinf(bounds[0]) and math.isinf(bounds[1]):
+        raise field_error(field, value, "a finite number")
+    raise field_error(field, value, f"a number in [{bounds[0]:g}, {bounds[1]:g}]{unit}")
 
 
-def _vector(value, field: str, positive: bool = False) -> np.ndarray:
+def _vector(value, field: str, bounds) -> np.ndarray:
     if not isinstance(value, list) or len(value) != 3:
         raise field_error(field, value, "a list of 3 numbers")
     return np.array(
-        [_number(v, f"{field}[{i}]", positive) for i, v in enumerate(value)]
+        [_number(v, f"{field}[{i}]", bounds, " m") for i, v in enumerate(value)]
     )
 
 
@@ -478,16 +511,19 @@ def _parse_piece(value, field: str) -> Piece:
         if not isinstance(value["axis"], str) or value["axis"] not in AXES:
             raise field_error(f"{field}.axis", value["axis"], "one of x, y, z")
         axis = AXES[value["axis"]]
+    center = (-MAX_CENTER_M, MAX_CENTER_M)
     return Piece(
         shape=shape,
-        center=_vector(value["center"], f"{field}.center"),
-        radius=_number(value["radius"], f"{field}.radius", True)
+        center=_vector(value["center"], f"{field}.center", center),
+        radius=_number(value["radius"], f"{field}.radius", SIZE_RANGE_M, " m")
         if "radius" in value
         else None,
-        length=_number(value["length"], f"{field}.length", True)
+        length=_number(value["length"], f"{field}.length", SIZE_RANGE_M, " m")
         if "length" in value
         else None,
-        size=_vector(value["size"], f"{field}.size", True) if "size" in value else None,
+        size=_vector(value["size"], f"{field}.size", SIZE_RANGE_M)
+        if "size" in value
+        else None,
         axis=axis,
         grasp=grasp,
     )
@@ -498,6 +534,11 @@ def _parse_geometry(value, field: str) -> tuple[Piece, ...]:
     if not isinstance(value["pieces"], list) or not value["pieces"]:
         raise field_error(
             f"{field}.pieces", value["pieces"], "a non-empty list of pieces"
+        )
+    if len(value["pieces"]) > MAX_PIECES:
+        raise field_error(
+            f"{field}.pieces", f"{len(value['pieces'])} pieces",
+            f"at most {MAX_PIECES}"
         )
     pieces = tuple(
         _parse_piece(item, f"{field}.pieces[{i}]")
@@ -616,8 +657,11 @@ def _parse_object(value, field: str, geometries: dict) -> ObjectSpec:
         raise field_error(field, value, "a mapping describing an object")
     _check_keys(value, field, required=_OBJECT_KEYS)
     name = value["name"]
-    if not isinstance(name, str) or not name:
-        raise field_error(f"{field}.name", name, "a non-empty string")
+    if not isinstance(name, str) or not _NAME.fullmatch(name):
+        raise field_error(
+            f"{field}.name", name, "1 to 64 letters, digits and ._+- (a "
+            "name safe in a file name), starting with a letter or digit"
+        )
     if not isinstance(value["set"], str) or value["set"] not in SETS:
         raise field_error(f"{field}.set", value["set"], f"one of {', '.join(SETS)}")
     geometry = value["geometry"]
@@ -627,14 +671,18 @@ def _parse_object(value, field: str, geometries: dict) -> ObjectSpec:
             geometry,
             f"one of the file's geometries ({', '.join(geometries)})",
         )
-    density = _number(value["density"], f"{field}.density", positive=True)
-    if density > MAX_BALLAST_DENSITY:
-        raise field_error(
-            f"{field}.density", density, f"at most {MAX_BALLAST_DENSITY} kg/m³"
-        )
+    density = _number(value["density"], f"{field}.density", DENSITY_RANGE, " kg/m³")
     h_cm = _number(value["h_cm"], f"{field}.h_cm")
     r_cm = _number(value["r_cm"], f"{field}.r_cm")
     pieces = geometries[geometry]
+    mass = density * sum(piece.volume for piece in pieces)
+    if not MASS_RANGE_KG[0] <= mass <= MASS_RANGE_KG[1]:
+        raise field_error(
+            f"{field}.density",
+            density,
+            f"a mass (density × the {geometry} volume) in "
+            f"[{MASS_RANGE_KG[0]:g}, {MASS_RANGE_KG[1]:g}] kg, not {mass:.3g} kg",
+        )
     p_OCm = np.array([r_cm, h_cm, 0.0])
     if max(float(piece.depth(p_OCm)[0]) for piece in pieces) < -_GEOMETRY_TOLERANCE:
         raise field_error(

@@ -7,6 +7,8 @@ servo torque limits), `hand.sdf` (10-DOF hand, in-plant PD finger servos) and
 See `sdf/README.md` for sources and choices.
 """
 
+import functools
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -69,6 +71,17 @@ class RobotInstances:
 
     arm: ModelInstanceIndex
     hand: ModelInstanceIndex
+
+
+@functools.cache
+def arm_joint_limits() -> tuple[tuple[float, float], ...]:
+    """The six arm joints' position limits (lower, upper), rad, joint1 first,
+    as puma560.sdf states them (read from the file, no plant built)."""
+    joints = {j.get("name"): j for j in ET.parse(PUMA_SDF).iter("joint")}
+    return tuple(
+        (float(joints[f"joint{i}"].find("axis/limit/lower").text),
+         float(joints[f"joint{i}"].find("axis/limit/upper").text))
+        for i in range(1, 7))
 
 
 def add_package_map(parser: Parser) -> None:
