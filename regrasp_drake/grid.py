@@ -64,17 +64,50 @@ def plan_object(scenario, obj, ik, catch_point: int = 1):
     return plans[catch_point - 1]
 
 
-def read_rows(path: Path, key=lambda row: tuple(row["cell"])) -> dict:
-    """{key(row): row} from a JSON-lines file (by default keyed by cell); a
-    line cut by a kill is skipped (its work runs again)."""
+def map_key(row) -> tuple[int, int]:
+    """The cell of a success map's row; InputError for a row that is not
+    one (no cell of the grid, no outcome)."""
+    from regrasp_drake.errors import field_error
+    cell = row.get("cell") if isinstance(row, dict) else None
+    if not (isinstance(cell, list) and len(cell) == 2
+            and all(type(k) is int for k in cell)
+            and 0 <= cell[0] < len(H_CATCH_VALUES)
+            and 0 <= cell[1] < len(H_DOWN_VALUES)):
+        raise field_error("cell", cell, "[i_catch, i_down] of the grid")
+    if not isinstance(row.get("outcome"), str):
+        raise field_error("outcome", row.get("outcome"), "a string")
+    return tuple(cell)
+
+
+def read_rows(path: Path, key=map_key) -> dict:
+    """{key(row): row} from a JSON-lines file (by default a success map's
+    rows, keyed by cell: map_key). A last line cut by a kill (no newline at
+    its end) is skipped (its work runs again); any other line that is not a
+    row key() reads is refused (InputError naming the file and the line)."""
+    from regrasp_drake.errors import InputError, quote
+    from regrasp_drake.input_files import parse_json, read_text
     done = {}
-    if path.exists():
-        for line in path.read_text().splitlines():
-            try:
-                row = json.loads(line)
-                done[key(row)] = row
-            except (json.JSONDecodeError, KeyError, TypeError):
+    path = Path(path)
+    if not path.exists():
+        return done
+    lines = read_text(path, "JSON-lines file of rows").split("\n")
+    for n, line in enumerate(lines, 1):
+        if not line.strip():
+            continue
+        try:
+            row = parse_json(line)
+            k = key(row)
+            hash(k)
+        except (InputError, KeyError, TypeError, IndexError, ValueError) as e:
+            if n == len(lines):  # no newline after it: cut by a kill
                 continue
+            reason = (str(e) if isinstance(e, InputError)
+                      else f"{type(e).__name__} {quote(str(e))}")
+            raise InputError(f"{path}: line {n}: not a whole row ({reason}), "
+                             "expected one JSON row per line: delete the "
+                             "line to compute it again, or give another "
+                             "file") from None
+        done[k] = row
     return done
 
 
@@ -189,12 +222,15 @@ def check_resume(out: Path, source: dict) -> None:
     from regrasp_drake.errors import InputError
     out, side = Path(out), plan_path(out)
     if side.exists():
+        from regrasp_drake.input_files import load_json
         try:
-            stored = json.loads(side.read_text())
-        except (OSError, json.JSONDecodeError) as e:
-            raise InputError(f"--out: {side} is not readable JSON ({e}), "
-                             "expected what the map's rows were computed "
-                             "from") from None
+            stored = load_json(side)
+        except InputError as e:
+            raise InputError(f"--out: {e}, expected what the map's rows "
+                             "were computed from") from None
+        if not isinstance(stored, dict):
+            raise InputError(f"--out: {side}: not a JSON mapping, expected "
+                             "what the map's rows were computed from")
         if stored != source:
             differs = [k for k in source if stored.get(k) != source[k]]
             raise InputError(

@@ -10,8 +10,8 @@ data set's and the flight predictor's JSON) is read through `read_text` and
   - YAML aliases that would expand the document past MAX_EXPANDED_NODES
     nodes (an "alias bomb"), or refer to themselves;
   - duplicate mapping keys (YAML and JSON keep the last one silently);
-  - non-finite numbers (.nan, .inf, NaN, Infinity, 1e999) and integers of
-    more than MAX_INT_DIGITS digits.
+  - non-finite numbers (.nan, .inf, NaN, Infinity, 1e999; the refusal names
+    the field) and integers of more than MAX_INT_DIGITS digits.
 YAML numbers are read in every notation a person writes: `1e5`, `1.0e5`,
 `1E-3` are floats (YAML 1.1, which PyYAML follows, reads them as strings).
 """
@@ -25,7 +25,7 @@ from pathlib import Path
 
 import yaml
 
-from regrasp_drake.errors import InputError, quote
+from regrasp_drake.errors import InputError, field_error, quote
 
 MAX_FILE_BYTES = 16 * 1024 * 1024
 MAX_DEPTH = 32
@@ -114,13 +114,6 @@ class _Loader(yaml.SafeLoader):
                                    "each key once")
         return super().construct_mapping(node, deep=deep)
 
-    def construct_yaml_float(self, node):
-        value = super().construct_yaml_float(node)
-        if not math.isfinite(value):
-            raise _refusal(node.start_mark, f"got {quote(node.value)}, "
-                           "expected a finite number")
-        return value
-
     def construct_yaml_int(self, node):
         digits = re.sub(r"[^0-9a-fA-F]", "", node.value)
         if len(digits) > MAX_INT_DIGITS:
@@ -130,7 +123,6 @@ class _Loader(yaml.SafeLoader):
         return super().construct_yaml_int(node)
 
 
-_Loader.add_constructor("tag:yaml.org,2002:float", _Loader.construct_yaml_float)
 _Loader.add_constructor("tag:yaml.org,2002:int", _Loader.construct_yaml_int)
 # YAML 1.2's floats with an exponent: 1e5, 1.0e5, 1E-3, .5e3 (YAML 1.1 needs
 # a dot and a signed exponent).
@@ -183,7 +175,7 @@ def parse_yaml(text: str):
     """The YAML document `text`, parsed within the module's limits;
     InputError (one line, starting with the line number where known)."""
     try:
-        return yaml.load(text, Loader=_Loader)
+        data = yaml.load(text, Loader=_Loader)
     except yaml.MarkedYAMLError as e:
         mark = e.problem_mark or e.context_mark
         where = (f" at line {mark.line + 1}, column {mark.column + 1}"
@@ -195,6 +187,8 @@ def parse_yaml(text: str):
         raise InputError(f"not valid YAML ({quote(str(e))})") from None
     except RecursionError:
         raise InputError(f"nested deeper than {MAX_DEPTH} levels") from None
+    check_finite(data)
+    return data
 
 
 def load_yaml(path, what: str = "YAML file"):
@@ -217,13 +211,6 @@ def _json_pairs(pairs):
     return dict(pairs)
 
 
-def _json_float(text: str) -> float:
-    value = float(text)
-    if not math.isfinite(value):
-        raise ValueError(f"got {quote(text)}, expected a finite number")
-    return value
-
-
 def _json_int(text: str) -> int:
     if len(text.lstrip("-")) > MAX_INT_DIGITS:
         raise ValueError(f"got {quote(text)}, expected an integer of at most "
@@ -231,16 +218,11 @@ def _json_int(text: str) -> int:
     return int(text)
 
 
-def _json_constant(text: str):
-    raise ValueError(f"got {text}, expected a finite number")
-
-
 def parse_json(text: str):
     """The JSON document `text` within the module's limits; InputError."""
     try:
         data = json.loads(text, object_pairs_hook=_json_pairs,
-                          parse_float=_json_float, parse_int=_json_int,
-                          parse_constant=_json_constant)
+                          parse_int=_json_int)
     except json.JSONDecodeError as e:
         raise InputError(f"line {e.lineno}: not valid JSON ({e.msg})") from None
     except ValueError as e:
@@ -249,6 +231,7 @@ def parse_json(text: str):
         raise InputError(f"nested deeper than {MAX_DEPTH} levels") from None
     if depth(data) > MAX_DEPTH:
         raise InputError(f"nested deeper than {MAX_DEPTH} levels")
+    check_finite(data)
     return data
 
 
@@ -260,6 +243,20 @@ def load_json(path, what: str = "JSON file"):
         return parse_json(text)
     except InputError as e:
         raise InputError(f"{path}: {e}") from None
+
+
+def check_finite(value, field: str = "") -> None:
+    """Refuses a non-finite number anywhere in parsed `value` (InputError
+    naming its field, dotted from the top)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        raise field_error(field or "the document", value, "a finite number")
+    if isinstance(value, (list, tuple)):
+        for i, item in enumerate(value):
+            check_finite(item, f"{field}[{i}]")
+    elif isinstance(value, dict):
+        for key, item in value.items():
+            shown = key if isinstance(key, str) and len(key) <= 64 else quote(key)
+            check_finite(item, f"{field}.{shown}" if field else str(shown))
 
 
 def depth(value) -> int:

@@ -41,6 +41,7 @@ import csv
 import hashlib
 import json
 import logging
+import math
 import multiprocessing
 import os
 import subprocess
@@ -50,12 +51,16 @@ from pathlib import Path
 import numpy as np
 
 from regrasp_drake import grid
-from regrasp_drake.errors import InputError
+from regrasp_drake.errors import InputError, quote
+from regrasp_drake.input_files import load_json, parse_yaml, read_text
 from regrasp_drake.paths import REPO_DIR
 
 FEATURE_NAMES = ("v_catch", "h_cm", "r_cm", "d_obj", "v_conv")
 CATCH_POINT_SEPARATION_S = grid.CATCH_POINT_SEPARATION_S
 SHAPE = (len(grid.H_CATCH_VALUES), len(grid.H_DOWN_VALUES))
+_SAMPLE_COLUMNS = ["object", *FEATURE_NAMES, "h_catch", "h_down",
+                   "label_i_catch", "label_i_down", "robustness",
+                   "cells_caught"]
 
 
 # ---- labels ------------------------------------------------------------------
@@ -152,7 +157,7 @@ def _object_done(out_dir: Path, name: str, only) -> bool:
     plan = out_dir / "plans" / f"{name}.json"
     if not plan.exists():
         return False
-    if not json.loads(plan.read_text()).get("usable"):
+    if not _read_plan(plan).get("usable"):
         return True
     rows = grid.read_rows(out_dir / "cells" / f"{name}.jsonl")
     wanted = grid.cells() if only is None else [tuple(c) for c in only]
@@ -216,19 +221,22 @@ def check_same_scenario(out_dir: Path, scenario_path=None) -> None:
     stored = None
     if provenance.exists():
         try:
-            stored = json.loads(provenance.read_text()).get("scenario")
-        except (OSError, json.JSONDecodeError) as e:
-            raise InputError(f"--out: {provenance} is not readable JSON "
-                             f"({e}), expected the data set's provenance") from None
+            stored = load_json(provenance)
+        except InputError as e:
+            raise InputError(f"--out: {e}, expected the data set's "
+                             "provenance") from None
+        stored = stored.get("scenario") if isinstance(stored, dict) else None
+        if not isinstance(stored, str):
+            raise InputError(f"--out: {provenance}: no scenario text, "
+                             "expected the data set's provenance")
     elif started.exists():
-        stored = started.read_text()
+        stored = read_text(started, "scenario YAML file")
     if stored is None:
         out_dir.mkdir(parents=True, exist_ok=True)
         started.write_text(current)
         return
     if stored != current:
-        import yaml
-        a, b = yaml.safe_load(stored) or {}, yaml.safe_load(current) or {}
+        a, b = parse_yaml(stored) or {}, parse_yaml(current) or {}
         field, old, new = _first_difference(a, b)
         raise InputError(
             f"--scenario: {field} is {new!r} here but {old!r} in the data set "
@@ -359,7 +367,7 @@ def assemble(names, out_dir: Path, *, scenario_path=None, wall_s=None,
     out_dir = Path(out_dir)
     maps, features, samples, unusable, unlabelled = [], [], [], [], []
     for name in names:
-        plan = json.loads((out_dir / "plans" / f"{name}.json").read_text())
+        plan = _read_plan(out_dir / "plans" / f"{name}.json")
         if not plan["usable"]:
             unusable.append({"object": name, "reason": plan["reason"]})
             continue
@@ -384,10 +392,7 @@ def assemble(names, out_dir: Path, *, scenario_path=None, wall_s=None,
                         feature_names=np.array(FEATURE_NAMES),
                         h_catch=grid.H_CATCH_VALUES, h_down=grid.H_DOWN_VALUES)
     with (out_dir / "samples.csv").open("w", newline="") as f:
-        fields = (["object", *FEATURE_NAMES, "h_catch", "h_down",
-                   "label_i_catch", "label_i_down", "robustness",
-                   "cells_caught"])
-        writer = csv.DictWriter(f, fieldnames=fields)
+        writer = csv.DictWriter(f, fieldnames=_SAMPLE_COLUMNS)
         writer.writeheader()
         writer.writerows(samples)
     provenance = {
@@ -419,8 +424,8 @@ def _runs(out_dir: Path, provenance: dict) -> list[dict]:
     runs = []
     path = out_dir / "provenance.json"
     if path.exists():
-        old = json.loads(path.read_text())
-        runs = old.get("runs")
+        old = load_json(path)
+        runs = old.get("runs") if isinstance(old, dict) else None
         if runs is None:
             runs = [] if old.get("generation_wall_s") is None else [{
                 "wall_s": old["generation_wall_s"],
@@ -443,13 +448,31 @@ def load_samples(data_dir: Path) -> list[dict]:
     if not path.exists():
         raise InputError(f"{path}: no such data set (run `regrasp-drake "
                          "dataset` first)")
-    with path.open() as f:
-        rows = list(csv.DictReader(f))
-    for row in rows:
+    rows = list(csv.DictReader(read_text(path, "CSV file").splitlines()))
+    for n, row in enumerate(rows, 2):
+        if set(row) != set(_SAMPLE_COLUMNS) or None in row.values():
+            raise InputError(f"{path}: line {n}: columns {quote(list(row))}, "
+                             f"expected {', '.join(_SAMPLE_COLUMNS)}")
         for k, v in row.items():
-            if k != "object":
+            if k == "object":
+                continue
+            try:
                 row[k] = float(v)
+            except ValueError:
+                row[k] = math.nan
+            if not math.isfinite(row[k]):
+                raise InputError(f"{path}: line {n}: {k}: got {quote(v)}, "
+                                 "expected a finite number")
     return rows
+
+
+def _read_plan(path: Path) -> dict:
+    """An entry's plans/<entry>.json; InputError for one that is not."""
+    plan = load_json(path)
+    if not isinstance(plan, dict) or not isinstance(plan.get("usable"), bool):
+        raise InputError(f"{path}: not an entry's plan (no usable: true or "
+                         "false), expected one `regrasp-drake dataset` wrote")
+    return plan
 
 
 def _code_version() -> str:

@@ -48,7 +48,8 @@ import numpy as np
 from pydrake.common.eigen_geometry import AngleAxis, Quaternion
 from pydrake.math import RotationMatrix
 
-from regrasp_drake.errors import InputError
+from regrasp_drake.errors import InputError, field_error
+from regrasp_drake.input_files import load_json
 from regrasp_drake.planning.catch_plan import lowest_point_along
 from regrasp_drake.planning.free_flight import propagate
 
@@ -194,36 +195,40 @@ class FlightPredictor:
 
     @staticmethod
     def load(path) -> "FlightPredictor":
+        """The predictor saved at path; InputError naming the file and the
+        field for a file that is not one (read within the limits of
+        input_files: size, nesting, finite numbers)."""
         path = Path(path)
-        if not path.is_file():
+        if not path.exists():
             raise InputError(f"{path}: no such flight predictor file (run "
                              "`regrasp-drake train-flight` first)")
-        try:
-            data = json.loads(path.read_text())
-        except (json.JSONDecodeError, UnicodeDecodeError) as e:
-            raise InputError(f"{path}: not a flight predictor file ({e})") \
-                from None
+        data = load_json(path, "flight predictor file (JSON)")
         if not isinstance(data, dict) or data.get("format") != _FORMAT:
-            raise InputError(f"{path}: format: {data.get('format')!r} "
-                             f"(expected {_FORMAT!r}; run `regrasp-drake "
-                             "train-flight` again)"
-                             if isinstance(data, dict) else
-                             f"{path}: not a flight predictor file")
+            raise field_error(f"{path}: format", data.get("format") if
+                              isinstance(data, dict) else data,
+                              f"{_FORMAT!r} (run `regrasp-drake "
+                              "train-flight` again)")
         n_in = len(INPUT_NAMES)
         try:
             W = np.asarray(data["weights"], float)
-            ok = (W.shape == (1 + n_in, 12) and len(data["input_mean"]) == n_in
+            R = np.asarray(data["R_ref"], float)
+            std = np.asarray(data["input_std"], float)
+            ok = (W.shape == (1 + n_in, 12)
+                  and np.asarray(data["input_mean"], float).shape == (n_in,)
                   and list(data["inputs"]) == list(INPUT_NAMES)
-                  and len(data["input_std"]) == n_in
-                  and np.asarray(data["R_ref"], float).shape == (3, 3)
-                  and np.all(np.isfinite(W)) and float(data["t_free_s"]) > 0)
+                  and std.shape == (n_in,) and np.all(std > 0)
+                  and R.shape == (3, 3)
+                  and np.abs(R @ R.T - np.eye(3)).max() < 1e-6
+                  and abs(np.linalg.det(R) - 1.0) < 1e-6
+                  and 0 < float(data["t_free_s"]) < 10)
         except (KeyError, TypeError, ValueError):
             ok = False
         if not ok:
             raise InputError(f"{path}: weights: malformed (expected a "
-                             f"{1 + n_in}×12 finite matrix over the inputs "
-                             f"{', '.join(INPUT_NAMES)} and their "
-                             "normalization)")
+                             f"{1 + n_in}×12 matrix over the inputs "
+                             f"{', '.join(INPUT_NAMES)}, their normalization "
+                             "(std > 0), R_ref a rotation and t_free_s in "
+                             "(0, 10) s)")
         return FlightPredictor(data)
 
 
@@ -406,13 +411,21 @@ def dataset_flights(data_dir) -> tuple[list, list]:
                    if "@" not in p.stem)
     objects, states = [], []
     for path in plans:
-        entry = json.loads(path.read_text())
-        if "free_flight" not in entry:
+        entry = load_json(path)
+        if not isinstance(entry, dict) or "free_flight" not in entry:
             raise InputError(f"{path}: free_flight missing (a data set from "
                              "an older version: run `regrasp-drake dataset` "
                              "again)")
+        try:
+            state = np.asarray(entry["free_flight"]["state"], float)
+            ok = state.shape == (13,) and isinstance(entry["object"], str)
+        except (KeyError, TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise InputError(f"{path}: free_flight.state or object malformed, "
+                             "expected 13 numbers and an object name")
         objects.append(resolve_object(name=entry["object"]))
-        states.append(np.asarray(entry["free_flight"]["state"], float))
+        states.append(state)
     return objects, states
 
 

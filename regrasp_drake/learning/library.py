@@ -35,6 +35,16 @@ The file (default `regrasp_library.yaml` in the current directory):
 
 `mode` and `search` were added after the first libraries were written: an
 entry without them reads them as None (not recorded).
+
+Bounds (anything else is refused, naming the field): object names as in an
+object file (safe in a file name); the object features within an object
+file's bounds (|h_cm|, |r_cm| <= 0.3 m, d_obj 20 … 20 000 kg/m³, v_conv an
+integer 0 … 128); t_s 0 … 60 s; |p_WO|, |p_WG| components <= 3 m; axis_W a
+unit vector; |v_catch| <= 50 m/s; tilt 0 … 1; R_WG a rotation; q_grasp
+within the PUMA 560's joint limits (sdf/puma560.sdf); h_catch, h_down in the
+parameter space; cell in the grid. The file is read within the limits of
+regrasp_drake/input_files.py (size, nesting, aliases, duplicate keys,
+finite numbers).
 """
 
 import dataclasses as dc
@@ -50,8 +60,11 @@ from pydrake.math import RigidTransform, RotationMatrix
 
 from regrasp_drake.errors import InputError, field_error
 from regrasp_drake.grid import H_CATCH_VALUES, H_DOWN_VALUES
+from regrasp_drake.input_files import load_yaml
 from regrasp_drake.learning.search import SEARCHES
 from regrasp_drake.station.scenario import H_CATCH_RANGE, H_DOWN_RANGE, Scenario
+from regrasp_drake.world.objects import DENSITY_RANGE, MAX_CENTER_M, NAME_PATTERN
+from regrasp_drake.world.robot import arm_joint_limits
 
 DEFAULT_LIBRARY = Path("regrasp_library.yaml")
 _FORMAT = "regrasp_drake.library"
@@ -106,18 +119,14 @@ def load_library(path) -> dict[str, LearnedEntry]:
     path = Path(path)
     if not path.exists():
         return {}
-    try:
-        data = yaml.safe_load(path.read_text())
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as e:
-        first = " ".join(str(e).split())[:200]
-        raise InputError(f"{path}: not a readable YAML file ({first})") from None
+    data = load_yaml(path, "YAML regrasp library")
     if not isinstance(data, dict) or data.get("format") != _FORMAT:
         raise field_error(f"{path}: format",
                           data.get("format") if isinstance(data, dict) else data,
                           repr(_FORMAT))
     if data.get("version") != _VERSION:
         raise field_error(f"{path}: version", data.get("version"), str(_VERSION))
-    unknown = sorted(set(data) - {"format", "version", "objects"})
+    unknown = [k for k in data if k not in ("format", "version", "objects")]
     if unknown:
         raise field_error(f"{path}: keys", unknown,
                           "only format, version and objects")
@@ -125,7 +134,11 @@ def load_library(path) -> dict[str, LearnedEntry]:
     if not isinstance(objects, dict):
         raise field_error(f"{path}: objects", objects,
                           "a mapping from object names to entries")
-    return {str(name): _entry(f"{path}: objects.{name}", raw)
+    for name in objects:
+        if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name):
+            raise field_error(f"{path}: objects", name, "object names of 1 "
+                              "to 64 letters, digits and ._+-")
+    return {name: _entry(f"{path}: objects.{name}", raw)
             for name, raw in objects.items()}
 
 
@@ -170,21 +183,32 @@ def _entry(where: str, raw) -> LearnedEntry:
     missing = [n for n in names if n not in raw and n not in _OPTIONAL]
     if missing:
         raise InputError(f"{where}.{missing[0]}: missing")
-    unknown = sorted(set(raw) - set(names))
+    unknown = [k for k in raw if k not in names]
     if unknown:
         raise field_error(f"{where}: keys", unknown, f"only {names}")
     for n in ("object_source", "scenario", "scenario_digest", "code_version"):
         _string(f"{where}.{n}", raw[n])
     features = _mapping(f"{where}.object_features", raw["object_features"],
                         _FEATURES)
-    for n in _FEATURES:
-        _number(f"{where}.object_features.{n}", features[n])
+    for n in ("h_cm", "r_cm"):
+        _number(f"{where}.object_features.{n}", features[n],
+                -MAX_CENTER_M, MAX_CENTER_M, " m")
+    _number(f"{where}.object_features.d_obj", features["d_obj"],
+            *DENSITY_RANGE, " kg/m³")
+    if not (type(features["v_conv"]) is int and 0 <= features["v_conv"] <= 128):
+        raise field_error(f"{where}.object_features.v_conv",
+                          features["v_conv"], "an integer in [0, 128]")
     point = _mapping(f"{where}.catch_point", raw["catch_point"], _CATCH_POINT)
-    for n in ("t_s", "v_catch", "tilt"):
-        _number(f"{where}.catch_point.{n}", point[n])
-    for n in ("p_WO", "axis_W"):
-        _vector(f"{where}.catch_point.{n}", point[n], 3)
-    _vector(f"{where}.p_WG", raw["p_WG"], 3)
+    _number(f"{where}.catch_point.t_s", point["t_s"], 0.0, 60.0, " s")
+    _number(f"{where}.catch_point.v_catch", point["v_catch"], -50.0, 50.0,
+            " m/s")
+    _number(f"{where}.catch_point.tilt", point["tilt"], 0.0, 1.0)
+    _vector(f"{where}.catch_point.p_WO", point["p_WO"], 3, -3.0, 3.0, " m")
+    _vector(f"{where}.catch_point.axis_W", point["axis_W"], 3, -1.0, 1.0)
+    if abs(np.linalg.norm(np.array(point["axis_W"], float)) - 1.0) > 1e-3:
+        raise field_error(f"{where}.catch_point.axis_W", point["axis_W"],
+                          "a unit vector")
+    _vector(f"{where}.p_WG", raw["p_WG"], 3, -3.0, 3.0, " m")
     R = raw["R_WG"]
     if not (isinstance(R, list) and len(R) == 3):
         raise field_error(f"{where}.R_WG", R, "3 rows of 3 numbers")
@@ -196,6 +220,9 @@ def _entry(where: str, raw) -> LearnedEntry:
         raise field_error(f"{where}.R_WG", R.round(6).tolist(),
                           "a rotation matrix (orthonormal, det +1)")
     _vector(f"{where}.q_grasp", raw["q_grasp"], 6)
+    for i, (q, (lo, hi)) in enumerate(zip(raw["q_grasp"], arm_joint_limits())):
+        _number(f"{where}.q_grasp[{i}]", q, lo, hi,
+                f" rad (joint{i + 1}'s limits in puma560.sdf)")
     if raw["side"] not in ("paper", "mirrored"):
         raise field_error(f"{where}.side", raw["side"], "paper or mirrored")
     _number(f"{where}.h_catch", raw["h_catch"], *H_CATCH_RANGE, " m")
@@ -231,11 +258,11 @@ def _number(field, value, lo=-math.inf, hi=math.inf, unit=""):
         raise field_error(field, value, expected)
 
 
-def _vector(field, value, n):
+def _vector(field, value, n, lo=-math.inf, hi=math.inf, unit=""):
     if not (isinstance(value, list) and len(value) == n):
         raise field_error(field, value, f"a list of {n} numbers")
     for i, x in enumerate(value):
-        _number(f"{field}[{i}]", x)
+        _number(f"{field}[{i}]", x, lo, hi, unit)
 
 
 def _mapping(field, value, keys) -> dict:

@@ -23,6 +23,7 @@ import torch
 
 from regrasp_drake import grid
 from regrasp_drake.errors import InputError
+from regrasp_drake.input_files import load_json
 from regrasp_drake.learning.dataset import FEATURE_NAMES, load_samples, object_of
 from regrasp_drake.station.mlp_system import CatchMlp, ParameterSpace, save_weights
 
@@ -70,6 +71,11 @@ def train(data_dir: Path, out: Path, *, seed: int = 0, epochs: int = 3000,
     weights as <out>.json)."""
     data_dir, out = Path(data_dir), Path(out)
     samples = load_samples(data_dir)
+    provenance = load_json(data_dir / "provenance.json") \
+        if (data_dir / "provenance.json").exists() else {}
+    if not isinstance(provenance, dict):
+        raise InputError(f"{data_dir / 'provenance.json'}: not a JSON "
+                         "mapping, expected the data set's provenance")
     train_i, val_i, test_i = split_indices(
         len(samples), seed, groups=[object_of(s["object"]) for s in samples])
     x, y = _arrays(samples)
@@ -103,8 +109,6 @@ def train(data_dir: Path, out: Path, *, seed: int = 0, epochs: int = 3000,
         "best_validation_loss": -best_score,
         "final_training_loss": curve["train"][-1],
     }
-    provenance = json.loads((data_dir / "provenance.json").read_text()) \
-        if (data_dir / "provenance.json").exists() else {}
     metadata = {
         "features": list(FEATURE_NAMES), "outputs": ["h_catch", "h_down"],
         "hidden": 13, "seed": seed, "epochs": epochs, "best_epoch": best_epoch,

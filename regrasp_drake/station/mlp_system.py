@@ -14,6 +14,7 @@ does not change torch's global settings.
 """
 
 import copy
+import io
 import json
 import math
 import os
@@ -24,6 +25,7 @@ import torch
 from pydrake.systems.framework import LeafSystem
 
 from regrasp_drake.errors import InputError, field_error
+from regrasp_drake.input_files import read_bytes
 
 # The network's inputs, in order (paper §V): the object's vertical velocity at
 # the catch point (m/s), the height h_cm and radius r_cm (m) of its centre of
@@ -101,12 +103,12 @@ def load_weights(path) -> tuple[CatchMlp, dict]:
     InputError naming the file and what is wrong with it, on one line.
     """
     path = os.fspath(path)
-    if os.path.isdir(path):
-        raise InputError(f"{path}: a directory, expected a weights file")
-    if not os.path.isfile(path):
+    if not os.path.exists(path):
         raise InputError(f"{path}: no such weights file")
+    # A regular file of at most input_files.MAX_FILE_BYTES (not a device).
+    raw = read_bytes(path, "weights file")
     try:
-        data = torch.load(path, map_location="cpu", weights_only=True)
+        data = torch.load(io.BytesIO(raw), map_location="cpu", weights_only=True)
     except Exception as e:  # torch raises many kinds for a bad file.
         reason = _load_failure(e)
         raise InputError(

@@ -107,7 +107,7 @@ MAX_GEOMETRIES = 100
 MAX_OBJECTS = 1000
 DENSITY_RANGE = (MIN_BASE_DENSITY, MAX_BALLAST_DENSITY)  # kg/m³
 MASS_RANGE_KG = (0.001, 2.5)
-_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+-]{0,63}")
+NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+-]{0,63}")
 
 SETS = ("train", "test", "holdout")
 AXES = {"x": 0, "y": 1, "z": 2}
@@ -657,7 +657,7 @@ def _parse_object(value, field: str, geometries: dict) -> ObjectSpec:
         raise field_error(field, value, "a mapping describing an object")
     _check_keys(value, field, required=_OBJECT_KEYS)
     name = value["name"]
-    if not isinstance(name, str) or not _NAME.fullmatch(name):
+    if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name):
         raise field_error(
             f"{field}.name", name, "1 to 64 letters, digits and ._+- (a "
             "name safe in a file name), starting with a letter or digit"
