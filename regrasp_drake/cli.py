@@ -1,16 +1,20 @@
 """The command line: `regrasp-drake <command> …`.
 
-Every error from bad input is one line on stderr and exit status 2.
+Every error from bad input is one line on stderr and exit status 2, found
+before any simulation (docs/input-checks.md lists what is checked). Ctrl-C
+ends a command with one line and exit status 130; what it has written so
+far (a map's rows, a data set's entries) is kept and resumed by the next run.
 """
 
 import argparse
 import json
 import os
+import signal
 import sys
 import time
 from pathlib import Path
 
-from regrasp_drake.errors import InputError, check_output_path
+from regrasp_drake.errors import InputError, check_output_path, quote
 
 
 def _add_object_args(p: argparse.ArgumentParser) -> None:
@@ -81,14 +85,15 @@ def _cmd_grid(args) -> int:
     from regrasp_drake.world.objects import resolve_object
     load_scenario(args.scenario)  # refuse a bad scenario before forking
     obj = resolve_object(name=args.object, file=args.object_file)
-    if args.workers < 1:
-        raise InputError(f"--workers: got {args.workers}, expected >= 1")
+    _check_workers(args.workers)
     if args.catch_point < 1:
         raise InputError(f"--catch-point: got {args.catch_point}, expected "
                          ">= 1")
     entry = obj.name + ("" if args.catch_point == 1
                         else f"@{args.catch_point}")
     out = args.out or Path(f"grid-{entry}.jsonl")
+    if args.out is None:  # checked as every output is (_check_outputs)
+        _check_output_files(args, {"--out (default)": out})
     rows = success_map(object_name=args.object, object_file=args.object_file,
                        scenario_path=args.scenario, out=out,
                        workers=args.workers, catch_point=args.catch_point)
@@ -262,6 +267,8 @@ def _cmd_dataset(args) -> int:
     from regrasp_drake.station.scenario import load_scenario
     from regrasp_drake.world.objects import load_catalogue
     load_scenario(args.scenario)  # refuse a bad scenario before any work
+    if args.backend == "process":
+        _check_workers(args.workers)
     catalogue = load_catalogue()
     names = args.objects or [n for n, o in catalogue.items()
                              if o.set == "train"]
@@ -512,25 +519,147 @@ def make_parser() -> argparse.ArgumentParser:
 # --library), and those that name a directory it makes and writes into.
 _OUTPUT_FILES = ("json", "html", "plot", "markdown", "library", "out")
 _OUTPUT_DIRS = ("maps_dir",)
+# The arguments that name a file or directory a command reads.
+_INPUTS = ("object_file", "scenario", "weights", "flight_model", "data")
+# Worker processes beyond this many per core only slow a run down.
+_WORKERS_PER_CORE = 4
 
 
-def _check_outputs(args) -> None:
-    """Refuses, before any work, an output path that could not be written:
-    a file's directory must exist and be writable; a directory the command
-    makes must lie under a writable one. (Not after the simulation.)"""
+def _check_workers(workers: int) -> None:
+    most = _WORKERS_PER_CORE * (os.cpu_count() or 1)
+    if not 1 <= workers <= most:
+        raise InputError(f"--workers: got {workers}, expected 1 … {most} "
+                         f"({_WORKERS_PER_CORE} per core of this machine)")
+
+
+def _outputs(args) -> tuple[dict, dict]:
+    """{flag: path} of the files and of the directories the command writes."""
+    files, dirs = {}, {}
     for name in _OUTPUT_FILES + _OUTPUT_DIRS:
         path = getattr(args, name, None)
         if (not isinstance(path, Path)
                 or (name == "library" and args.command == "apply")
                 or (name == "maps_dir" and args.no_maps)):
             continue
-        check_output_path("--" + name.replace("_", "-"), path,
-                          makes_directory=name in _OUTPUT_DIRS or (
-                              name == "out" and args.command == "dataset"))
+        flag = "--" + name.replace("_", "-")
+        is_dir = name in _OUTPUT_DIRS or (name == "out" and
+                                          args.command == "dataset")
+        (dirs if is_dir else files)[flag] = path
+    return files, dirs
+
+
+def _check_outputs(args) -> None:
+    """Refuses, before any work, an output path that could not be written
+    (a file's directory must exist and be writable; a directory the command
+    makes must lie under a writable one), that is another output or an
+    input of the command, or that is an existing file not ours
+    (_check_output_files)."""
+    files, dirs = _outputs(args)
+    for flag, path in (files | dirs).items():
+        check_output_path(flag, path, makes_directory=flag in dirs)
+    inputs = {"--" + name.replace("_", "-"): getattr(args, name)
+              for name in _INPUTS if isinstance(getattr(args, name, None), Path)}
+    if args.command == "apply":
+        inputs["--library"] = args.library
+    seen = {}
+    for flag, path in (files | dirs).items():
+        for other, other_path in list(seen.items()) + list(inputs.items()):
+            if _same_path(path, other_path):
+                what = "output" if other in seen else "input"
+                raise InputError(f"{flag}: got {quote(str(path))}, the same "
+                                 f"path as the {what} {other}, expected "
+                                 "another path")
+        seen[flag] = path
+    _check_output_files(args, files)
+    if "--out" in dirs:
+        _check_dataset_dir(dirs["--out"])
+
+
+def _same_path(a: Path, b: Path) -> bool:
+    """a and b name the same file (through links too)."""
+    return Path(a).resolve() == Path(b).resolve()
+
+
+def _check_output_files(args, files: dict) -> None:
+    """Refuses an existing output that is not ours: a map (--out of grid)
+    without its F.plan.json beside it or with a malformed row; a library
+    that does not load; a --json file that is not JSON (a device such as
+    /dev/null is fine). And a --plot whose extension matplotlib cannot
+    write."""
+    from regrasp_drake.input_files import load_json
+    for flag, path in files.items():
+        if flag == "--plot":
+            _check_plot_extension(path)
+        if not path.exists():
+            continue
+        if flag.startswith("--out") and args.command == "grid":
+            from regrasp_drake.grid import plan_path, read_rows
+            if path.is_file() and path.stat().st_size and not (
+                    plan_path(path).exists()):
+                raise InputError(
+                    f"{flag}: got {quote(str(path))}, an existing file "
+                    f"without {plan_path(path).name} beside it (not a map "
+                    "this command began), expected a new file or a map to "
+                    "resume")
+            try:  # a malformed row: refused, naming its line
+                read_rows(path)
+            except InputError as e:
+                raise InputError(f"{flag}: {e}") from None
+        elif flag == "--library":
+            from regrasp_drake.learning.library import load_library
+            try:
+                load_library(path)
+            except InputError as e:
+                raise InputError(f"--library: {e}") from None
+        elif flag == "--json" and path.is_file() and path.stat().st_size:
+            try:
+                load_json(path)
+            except InputError as e:
+                raise InputError(f"--json: got {quote(str(path))}, an "
+                                 "existing file that is not JSON (not a "
+                                 f"result of ours: {e}), expected a new file "
+                                 "or an earlier result") from None
+
+
+def _check_plot_extension(path: Path) -> None:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    kinds = FigureCanvasAgg.get_supported_filetypes()
+    if path.suffix.lower().lstrip(".") not in kinds:
+        raise InputError(f"--plot: got {quote(str(path))}, expected a file "
+                         "name ending in one of "
+                         f"{', '.join('.' + k for k in sorted(kinds))}")
+
+
+def _check_dataset_dir(path: Path) -> None:
+    """A data set's directory is ours when new, empty, or holding what
+    `dataset` writes."""
+    if not path.is_dir() or not any(path.iterdir()):
+        return
+    if not any((path / name).exists() for name in
+               ("provenance.json", "scenario.yaml", "cells", "plans")):
+        raise InputError(f"--out: got {quote(str(path))}, an existing "
+                         "directory that holds no data set, expected a new "
+                         "or empty directory or a data set to resume")
+
+
+def _interrupted_in_a_worker(signum, frame):
+    """SIGINT (Ctrl-C reaches the whole process group) in a forked worker:
+    it ends quietly; the command's own process reports the interruption."""
+    os._exit(130)
 
 
 def main(argv=None) -> int:
     args = make_parser().parse_args(argv)
+    main_pid = os.getpid()
+
+    def on_sigint(signum, frame):
+        if os.getpid() != main_pid:
+            _interrupted_in_a_worker(signum, frame)
+        raise KeyboardInterrupt
+
+    previous = signal.getsignal(signal.SIGINT)
+    if previous is signal.default_int_handler:
+        signal.signal(signal.SIGINT, on_sigint)
     try:
         if (args.command != "objects" and "object_file" in vars(args)
                 and args.object is None and args.object_file is None):
@@ -540,14 +669,27 @@ def main(argv=None) -> int:
         _check_outputs(args)
         return args.func(args)
     except InputError as e:
-        print(f"regrasp-drake {args.command}: error: {e}", file=sys.stderr)
+        # One line whatever the message holds, and never a huge one.
+        message = " ".join(str(e).split())
+        if len(message) > 1000:
+            message = message[:500] + " … " + message[-400:]
+        print(f"regrasp-drake {args.command}: error: {message}",
+              file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"regrasp-drake {args.command}: interrupted; what was written "
+              "so far is kept (a map or data set resumes from it)",
+              file=sys.stderr)
+        return 130
     except BrokenPipeError:
         # The reader went away (`regrasp-drake objects | head`): no
         # traceback. Python's documented recipe: what is left of stdout
         # goes nowhere, and the exit status is 1.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
+    finally:
+        if previous is signal.default_int_handler:
+            signal.signal(signal.SIGINT, previous)
 
 
 if __name__ == "__main__":

@@ -107,11 +107,11 @@ class TestCli(unittest.TestCase):
                          "expected an integer >= 0")
 
     def test_object_the_hand_cannot_hold_refused_with_the_reason(self):
-        # A 0.4 m wide, 20 kg cylinder: valid as an object, but the watching
-        # throw ends before the release with it near the ground.
+        # A 0.5 m wide, 2 kg disc: within an object's bounds, but its watched
+        # flight never comes down to the catch height.
         with tempfile.TemporaryDirectory() as d:
             path = _object_file(
-                d, "shape: cylinder, radius: 0.2, length: 0.8, axis: y", "big")
+                d, "shape: cylinder, radius: 0.25, length: 0.05, axis: y", "big")
             result = _run("learn", "--object-file", str(path), "--library",
                           str(Path(d) / "library.yaml"))
         self.assertEqual(result.returncode, 2)
@@ -119,9 +119,19 @@ class TestCli(unittest.TestCase):
         lines = result.stderr.strip().splitlines()
         self.assertEqual(len(lines), 2, result.stderr)
         self.assertIn("throw 1 (watch): landed", lines[0])
-        self.assertIn("learn: error: object big: no catch point: the watching "
-                      "throw ended", lines[1])
-        self.assertIn("before the release at 0.610 s", lines[1])
+        self.assertIn("learn: error: object big: no catch point", lines[1])
+
+    def test_object_beyond_the_bounds_refused_before_any_throw(self):
+        # A 0.8 m long, 20 kg cylinder: no PUMA 560 throws it.
+        with tempfile.TemporaryDirectory() as d:
+            path = _object_file(
+                d, "shape: cylinder, radius: 0.2, length: 0.8, axis: y", "big")
+            result = _run("learn", "--object-file", str(path), "--library",
+                          str(Path(d) / "library.yaml"))
+        self.assertEqual(result.returncode, 2)
+        self.assertEqual(len(result.stderr.strip().splitlines()), 1)
+        self.assertIn("pieces[0].length: got 0.8, expected a number in "
+                      "[0.001, 0.3] m", result.stderr)
 
     def test_object_missing_refused_naming_both_flags(self):
         result = _run("learn")
