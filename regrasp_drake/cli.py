@@ -124,9 +124,9 @@ def _write_json(path, data) -> None:
 
 
 def _cmd_throw(args) -> int:
+    scenario, obj, _, _ = _scenario_and_object(args)  # before heavy imports
     from regrasp_drake.learning.learning_phase import observe
     from regrasp_drake.planning.ik import ArmIk
-    scenario, obj, _, _ = _scenario_and_object(args)
     observation = observe(scenario, obj, ArmIk())
     if args.plot:
         from regrasp_drake.learning.plots import plot_flight
@@ -211,12 +211,12 @@ def _replay(path):
 
 
 def _cmd_learn(args) -> int:
+    _check_first_throw_args(args)
+    scenario, obj, source, label = _scenario_and_object(args)
     import torch
 
     from regrasp_drake.learning.learning_phase import learn
     torch.set_num_threads(1)
-    _check_first_throw_args(args)
-    scenario, obj, source, label = _scenario_and_object(args)
     model = _load_network(args, scenario)
     replay = _replay(args.html)
     result = learn(scenario, obj, model, library_path=args.library,
@@ -242,10 +242,10 @@ def _cmd_learn(args) -> int:
 
 
 def _cmd_apply(args) -> int:
-    from regrasp_drake.learning.learning_phase import apply_learned
-    from regrasp_drake.learning.library import lookup
     start = time.perf_counter()
     scenario, obj, _, _ = _scenario_and_object(args)
+    from regrasp_drake.learning.learning_phase import apply_learned
+    from regrasp_drake.learning.library import lookup
     entry = lookup(args.library, obj.name)
     replay = _replay(args.html)
     result = apply_learned(scenario, obj, entry,

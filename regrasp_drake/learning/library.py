@@ -213,7 +213,7 @@ def _entry(where: str, raw) -> LearnedEntry:
     if not (isinstance(R, list) and len(R) == 3):
         raise field_error(f"{where}.R_WG", R, "3 rows of 3 numbers")
     for i, row in enumerate(R):
-        _vector(f"{where}.R_WG[{i}]", row, 3)
+        _vector(f"{where}.R_WG[{i}]", row, 3, -1.0 - 1e-6, 1.0 + 1e-6)
     R = np.array(R, float)
     if (np.abs(R @ R.T - np.eye(3)).max() > 1e-6
             or abs(np.linalg.det(R) - 1.0) > 1e-6):
