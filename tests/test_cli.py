@@ -1,11 +1,14 @@
 """The command line, as a user runs it: exit codes and one-line errors."""
 
+import contextlib
+import io
 import json
 import subprocess
 import sys
 import tempfile
 import unittest
 from pathlib import Path
+from unittest import mock
 
 EXAMPLE_OBJECTS = Path(__file__).parents[1] / "examples" / "my_object.yaml"
 
@@ -205,3 +208,87 @@ class TestExampleObjects(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class OutputChecksTest(unittest.TestCase):
+    """Outputs refused before any work, in one line, the files left as they
+    were; Ctrl-C ends a command with one line and exit 130."""
+
+    def setUp(self):
+        self.tmp = tempfile.TemporaryDirectory()
+        self.d = Path(self.tmp.name)
+
+    def tearDown(self):
+        self.tmp.cleanup()
+
+    def _refused(self, argv, fragment, *kept):
+        from regrasp_drake.cli import main
+        before = [p.read_bytes() for p in kept]
+        err = io.StringIO()
+        with contextlib.redirect_stderr(err):
+            code = main([str(a) for a in argv])
+        self.assertEqual(code, 2, err.getvalue())
+        self.assertEqual(len(err.getvalue().strip().splitlines()), 1)
+        self.assertIn(fragment, err.getvalue())
+        self.assertEqual([p.read_bytes() for p in kept], before)
+
+    def test_an_output_that_is_another_output_or_an_input(self):
+        library = self.d / "library.yaml"
+        self._refused(["learn", "--object", "table1-row2", "--library",
+                       library, "--json", library], "the same path as")
+        self._refused(["grid", "--object", "table1-row2", "--out",
+                       self.d / "m", "--plot", self.d / "m"],
+                      "the same path as the output --plot")
+        objects = _object_file(self.d, "shape: sphere, radius: 0.03")
+        self._refused(["throw", "--object-file", objects, "--json", objects],
+                      "the same path as the input --object-file", objects)
+
+    def test_an_existing_file_that_is_not_ours(self):
+        notes = self.d / "notes.txt"
+        notes.write_text("my notes\n")
+        self._refused(["grid", "--object", "table1-row2", "--out", notes],
+                      "without notes.txt.plan.json beside it", notes)
+        self._refused(["throw", "--object", "table1-row2", "--json", notes],
+                      "not JSON", notes)
+        self._refused(["learn", "--object", "table1-row2", "--library", notes],
+                      "--library:", notes)
+
+    def test_a_resumed_map_with_a_malformed_row_names_its_line(self):
+        rows = self.d / "m.jsonl"
+        rows.write_text('{"cell": [0, 0], "outcome": "caught"}\n'
+                        '{"cell": [0, 1]}\n')
+        (self.d / "m.jsonl.plan.json").write_text("{}\n")
+        self._refused(["grid", "--object", "table1-row2", "--out", rows],
+                      "line 2: not a whole row (outcome", rows)
+
+    def test_a_plot_matplotlib_cannot_write_and_too_many_workers(self):
+        self._refused(["grid", "--object", "table1-row2", "--out",
+                       self.d / "m.jsonl", "--plot", self.d / "m.xyz"],
+                      "--plot: got")
+        self._refused(["grid", "--object", "table1-row2", "--out",
+                       self.d / "m.jsonl", "--workers", "100000"],
+                      "--workers: got 100000")
+
+    def test_ctrl_c_ends_with_one_line_and_exit_130(self):
+        from regrasp_drake import cli
+
+        def interrupted(args):
+            raise KeyboardInterrupt
+
+        parser = cli.make_parser
+        with mock.patch.object(cli, "make_parser", lambda: _with_func(
+                parser(), interrupted)):
+            err = io.StringIO()
+            with contextlib.redirect_stderr(err):
+                code = cli.main(["objects"])
+        self.assertEqual(code, 130)
+        self.assertEqual(len(err.getvalue().strip().splitlines()), 1)
+        self.assertIn("interrupted", err.getvalue())
+
+
+def _with_func(parser, func):
+    """The parser, every command running `func` instead."""
+    for action in parser._subparsers._group_actions:
+        for sub in action.choices.values():
+            sub.set_defaults(func=func)
+    return parser
