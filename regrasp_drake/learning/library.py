@@ -213,9 +213,10 @@ def _entry(where: str, raw) -> LearnedEntry:
     if not (isinstance(R, list) and len(R) == 3):
         raise field_error(f"{where}.R_WG", R, "3 rows of 3 numbers")
     for i, row in enumerate(R):
-        _vector(f"{where}.R_WG[{i}]", row, 3, -1.0 - 1e-6, 1.0 + 1e-6)
+        _vector(f"{where}.R_WG[{i}]", row, 3)
     R = np.array(R, float)
-    if (np.abs(R @ R.T - np.eye(3)).max() > 1e-6
+    if (np.abs(R).max() > 1.0 + 1e-6  # (and no overflow in the product)
+            or np.abs(R @ R.T - np.eye(3)).max() > 1e-6
             or abs(np.linalg.det(R) - 1.0) > 1e-6):
         raise field_error(f"{where}.R_WG", R.round(6).tolist(),
                           "a rotation matrix (orthonormal, det +1)")
