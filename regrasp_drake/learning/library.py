@@ -218,7 +218,8 @@ def _entry(where: str, raw) -> LearnedEntry:
     if (np.abs(R).max() > 1.0 + 1e-6  # (and no overflow in the product)
             or np.abs(R @ R.T - np.eye(3)).max() > 1e-6
             or abs(np.linalg.det(R) - 1.0) > 1e-6):
-        raise field_error(f"{where}.R_WG", R.round(6).tolist(),
+        raise field_error(f"{where}.R_WG",
+                          [[round(x, 6) for x in row] for row in raw["R_WG"]],
                           "a rotation matrix (orthonormal, det +1)")
     _vector(f"{where}.q_grasp", raw["q_grasp"], 6)
     for i, (q, (lo, hi)) in enumerate(zip(raw["q_grasp"], arm_joint_limits())):
