@@ -194,9 +194,13 @@ def parse_yaml(text: str):
 def load_yaml(path, what: str = "YAML file"):
     """The YAML file at path, read (read_text) and parsed (parse_yaml);
     InputError naming the path."""
+    return _load(path, what, parse_yaml)
+
+
+def _load(path, what: str, parse):
     text = read_text(path, what)
     try:
-        return parse_yaml(text)
+        return parse(text)
     except InputError as e:
         raise InputError(f"{path}: {e}") from None
 
@@ -238,11 +242,7 @@ def parse_json(text: str):
 def load_json(path, what: str = "JSON file"):
     """The JSON file at path, read (read_text) and parsed (parse_json);
     InputError naming the path."""
-    text = read_text(path, what)
-    try:
-        return parse_json(text)
-    except InputError as e:
-        raise InputError(f"{path}: {e}") from None
+    return _load(path, what, parse_json)
 
 
 def check_finite(value, field: str = "") -> None:
