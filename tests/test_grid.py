@@ -159,7 +159,8 @@ class ResumeCheckTest(unittest.TestCase):
             plan_path(out).write_text("{")
             with self.assertRaises(InputError) as e:
                 check_resume(out, self.SOURCE)
-            self.assertIn("is not readable JSON", str(e.exception))
+            self.assertIn("g.jsonl.plan.json: line 1: not valid JSON",
+                          str(e.exception))
 
 
 class SuccessMapPlotTest(unittest.TestCase):
