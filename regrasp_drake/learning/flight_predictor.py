@@ -438,8 +438,8 @@ def train_from_dataset(data_dir, scenario, out, *, ik, eval_objects=(),
     its true flight: catch position (mm), v_catch (m/s), catch time (ms),
     axis (degrees), and the offset and axis at the actual catch moment;
     and, for both, the predicted state after the throw against the actual
-    one (state_errors, the release_* fields). Also writes the report as
-    <out>.report.json."""
+    one (state_errors, the release_* fields). Also writes the report
+    (report_path: <out>.report.json)."""
     from regrasp_drake.throw_catch import watch
     objects, states = dataset_flights(data_dir)
     if len(objects) < 10:
@@ -470,6 +470,10 @@ def train_from_dataset(data_dir, scenario, out, *, ik, eval_objects=(),
               "cross_validation": {"summary": summarize(cv_rows),
                                    "objects": cv_rows},
               "evaluation": {"summary": summarize(rows), "objects": rows}}
-    Path(str(out) + ".report.json").write_text(json.dumps(report, indent=1)
-                                              + "\n")
+    report_path(out).write_text(json.dumps(report, indent=1) + "\n")
     return report
+
+
+def report_path(out) -> Path:
+    """Where train_from_dataset writes the report of the predictor at out."""
+    return Path(str(out) + ".report.json")

@@ -119,10 +119,22 @@ def train(data_dir: Path, out: Path, *, seed: int = 0, epochs: int = 3000,
     }
     out.parent.mkdir(parents=True, exist_ok=True)
     save_weights(out, model, metadata)
-    out.with_suffix(".json").write_text(json.dumps(report, indent=1) + "\n")
+    report_path(out).write_text(json.dumps(report, indent=1) + "\n")
     if curve_png is not None:
         _plot_curve(curve, best_epoch, curve_png)
     return report
+
+
+def report_path(out) -> Path:
+    """Where train writes the report of the weights at out (<out>.json)."""
+    return Path(out).with_suffix(".json")
+
+
+def curve_path(out) -> Path:
+    """Where the command line has train plot the training curve of the
+    weights at out (<out stem>_training.png)."""
+    out = Path(out)
+    return out.with_name(out.stem + "_training.png")
 
 
 def fit(model, training_loss, validation_score, *, epochs: int,
