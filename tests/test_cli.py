@@ -3,9 +3,12 @@
 import contextlib
 import io
 import json
+import os
+import signal
 import subprocess
 import sys
 import tempfile
+import time
 import unittest
 from pathlib import Path
 from unittest import mock
@@ -441,6 +444,51 @@ class OutputChecksTest(unittest.TestCase):
         self.assertEqual(code, 130)
         self.assertEqual(len(err.getvalue().strip().splitlines()), 1)
         self.assertIn("interrupted", err.getvalue())
+
+
+class InterruptTest(unittest.TestCase):
+    """A real Ctrl-C (SIGINT to the process group, as a terminal sends it)
+    in the cheapest command that simulates: `grid` on one worker."""
+
+    def test_ctrl_c_keeps_the_rows_written_and_a_rerun_resumes(self):
+        with tempfile.TemporaryDirectory() as d:
+            out = Path(d) / "m.jsonl"
+            first = self._interrupted(out, rows=1)
+            # The rows written before Ctrl-C are kept, whole.
+            self.assertTrue(first.endswith(b"\n"))
+            from regrasp_drake.grid import plan_path, read_rows
+            n = len(read_rows(out))
+            self.assertEqual(n, first.count(b"\n"))
+            self.assertTrue(plan_path(out).exists())
+            # The rerun resumes: it keeps them and adds other cells.
+            second = self._interrupted(out, rows=n + 1)
+            self.assertEqual(second[:len(first)], first)
+            self.assertGreater(len(read_rows(out)), n)
+            self.assertEqual(len(read_rows(out)), second.count(b"\n"))
+
+    def _interrupted(self, out: Path, rows: int) -> bytes:
+        """Runs `grid` into out, sends SIGINT to its process group once out
+        holds `rows` rows; asserts exit 130 and one line on stderr; returns
+        out's bytes."""
+        process = subprocess.Popen(
+            [sys.executable, "-m", "regrasp_drake.cli", "grid", "--object",
+             "table1-row2", "--out", str(out), "--workers", "1"],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+            start_new_session=True)
+        deadline = time.monotonic() + 60
+        while not (out.exists() and out.read_bytes().count(b"\n") >= rows):
+            if process.poll() is not None or time.monotonic() > deadline:
+                process.kill()
+                self.fail(f"no {rows} rows: {process.communicate()[1]!r}")
+            time.sleep(0.05)
+        os.killpg(process.pid, signal.SIGINT)
+        stdout, stderr = process.communicate(timeout=30)
+        self.assertEqual(process.returncode, 130, stderr)
+        lines = stderr.decode().strip().splitlines()
+        self.assertEqual(len(lines), 1, stderr)
+        self.assertIn("grid: interrupted; what was written so far is kept",
+                      lines[0])
+        return out.read_bytes()
 
 
 def _no_work(args):
