@@ -304,33 +304,43 @@ def _cmd_dataset(args) -> int:
     return 0
 
 
-def _cmd_train(args) -> int:
-    import torch
+def _train_files(out: Path) -> tuple[Path, Path]:
+    """The report (F.json) and the training curve (F_training.png) `train`
+    writes beside the weights F."""
+    return out.with_suffix(".json"), out.with_name(out.stem + "_training.png")
 
-    from regrasp_drake.learning.train import curve_path, report_path, train
+
+def _cmd_train(args) -> int:
+    from regrasp_drake.learning.dataset import load_training_data
     from regrasp_drake.paths import MODELS_DIR
-    torch.set_num_threads(1)
     if args.splits < 1:
         raise InputError(f"--splits: got {args.splits}, expected an integer "
                          ">= 1")
     if args.seed < 0:
         raise InputError(f"--seed: got {args.seed}, expected an integer >= 0")
     data = args.data or MODELS_DIR / "dataset"
+    load_training_data(data)  # refuse a bad data set before importing torch
+    import torch
+
+    from regrasp_drake.learning.train import train
+    torch.set_num_threads(1)
     out = args.out
-    report = train(data, out, seed=args.seed, curve_png=curve_path(out))
+    report_json, curve_png = _train_files(out)
+    report = train(data, out, seed=args.seed, curve_png=curve_png,
+                   report_json=report_json)
     if args.splits > 1:
         from regrasp_drake.learning.train import repeated_splits
         report["repeated_splits"] = repeated_splits(
             data, range(args.seed, args.seed + args.splits))
-        report_path(out).write_text(json.dumps(report, indent=1) + "\n")
+        report_json.write_text(json.dumps(report, indent=1) + "\n")
     print(json.dumps({k: v for k, v in report.items() if k != "split"},
                      indent=1))
     if not report["held_out"]:
         print("regrasp-drake train: warning: fewer than 3 objects in the data "
               "set: trained, validated and tested on the same samples (no "
               "held-out figures)", file=sys.stderr)
-    print(f"weights: {out}; report: {report_path(out)}; curve: "
-          f"{curve_path(out)}", file=sys.stderr)
+    print(f"weights: {out}; report: {report_json}; curve: {curve_png}",
+          file=sys.stderr)
     return 0
 
 
@@ -345,7 +355,7 @@ def _cmd_table1(args) -> int:
     scenario = load_scenario(args.scenario)
     model = _load_network(args, scenario)
     rows = run_table1(scenario, model, ik=ArmIk(), library_path=args.library,
-                      maps_dir=None if args.no_maps else args.maps_dir,
+                      maps_dir=args.maps_dir,
                       flight_predictor=_flight_predictor(args),
                       objects=args.objects, max_throws=args.max_throws,
                       at_release=args.at_release, search=args.search)
@@ -632,9 +642,9 @@ def _beside(args, path, holds) -> dict:
         from regrasp_drake.grid import plan_path
         return {"its plan": (plan_path(path), "json")}
     if holds == "weights":
-        from regrasp_drake.learning.train import curve_path, report_path
-        return {"its report": (report_path(path), "json"),
-                "its training curve": (curve_path(path), "plot")}
+        report_json, curve_png = _train_files(path)
+        return {"its report": (report_json, "json"),
+                "its training curve": (curve_png, "plot")}
     if holds == "flight model":
         from regrasp_drake.learning.flight_predictor import report_path
         return {"its report": (report_path(path), "json")}
