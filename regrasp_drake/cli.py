@@ -347,16 +347,28 @@ def _cmd_train(args) -> int:
 def _cmd_table1(args) -> int:
     import torch
 
-    from regrasp_drake.learning.table1 import format_markdown, run_table1, write_outputs
+    from regrasp_drake.learning.table1 import (
+        format_markdown,
+        object_names,
+        run_table1,
+        write_outputs,
+    )
     from regrasp_drake.planning.ik import ArmIk
     from regrasp_drake.station.scenario import load_scenario
+    from regrasp_drake.world.objects import resolve_object
     torch.set_num_threads(1)
     _check_first_throw_args(args)
     scenario = load_scenario(args.scenario)
     model = _load_network(args, scenario)
+    flight_predictor = _flight_predictor(args)
+    for name in object_names(args.objects):  # all of them before any throw
+        try:
+            resolve_object(name=name)
+        except InputError as e:
+            raise InputError(f"--objects: {e}") from None
     rows = run_table1(scenario, model, ik=ArmIk(), library_path=args.library,
                       maps_dir=args.maps_dir,
-                      flight_predictor=_flight_predictor(args),
+                      flight_predictor=flight_predictor,
                       objects=args.objects, max_throws=args.max_throws,
                       at_release=args.at_release, search=args.search)
     print(format_markdown(rows))
