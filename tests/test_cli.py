@@ -105,6 +105,18 @@ class TestCli(unittest.TestCase):
                 self.assertEqual(len(result.stderr.strip().splitlines()), 1)
                 self.assertIn(expected, result.stderr)
 
+    def test_table1_refuses_a_bad_object_before_any_throw(self):
+        from regrasp_drake import cli
+        err = io.StringIO()
+        with tempfile.TemporaryDirectory() as d, \
+                mock.patch("regrasp_drake.learning.table1.run_table1",
+                           side_effect=AssertionError("a throw ran")), \
+                contextlib.redirect_stderr(err):
+            code = cli.main(["table1", "--objects", "table1-row1", "none-such",
+                             "--no-maps", "--library", f"{d}/library.yaml"])
+        self.assertEqual(code, 2)
+        self.assertIn("--objects: object name: got 'none-such'", err.getvalue())
+
     def test_negative_seed_refused(self):
         result = _run("train", "--seed", "-1")
         self.assertEqual(result.returncode, 2)
