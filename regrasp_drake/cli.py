@@ -1,9 +1,12 @@
 """The command line: `regrasp-drake <command> …`.
 
 Every error from bad input is one line on stderr and exit status 2, found
-before any simulation (docs/input-checks.md lists what is checked). Ctrl-C
-ends a command with one line and exit status 130; what it has written so
-far (a map's rows, a data set's entries) is kept and resumed by the next run.
+before any simulation (docs/input-checks.md lists what is checked), the
+outputs' included: no existing file that is not the command's own is
+overwritten. Outputs given no path go to --out-dir (default paths.OUT_DIR,
+out/ at the top of the repository). Ctrl-C ends a command with one line and
+exit status 130; what it has written so far (a map's rows, a data set's
+entries) is kept and resumed by the next run.
 """
 
 import argparse
