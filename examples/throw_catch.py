@@ -2,13 +2,14 @@
 network's parameters; save the replay.
 
     .venv/bin/python examples/throw_catch.py [--object table1-row2]
-        [--object-file examples/my_object.yaml] [--out throw_catch.html]
+        [--object-file examples/my_object.yaml] [--out out/throw_catch.html]
 
 Throw 1 watches; the offline stage plans the catch; the trained network in
 models/ predicts (h_catch, h_down) from (v_catch, h_cm, r_cm, d_obj,
 v_conv), quantized to its grid cell; throw 2 catches. Writes
 throw_catch.html (the Meshcat replay of throw 2, self-contained) and
-throw_catch.png (the sensors over time), and prints the outcome.
+throw_catch.png (the sensors over time) in out/ at the top of the
+repository (git-ignored; --out elsewhere), and prints the outcome.
 """
 
 # regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
@@ -24,7 +25,7 @@ import torch
 from regrasp_drake.errors import InputError
 from regrasp_drake.grid import cell_parameters, nearest_cell
 from regrasp_drake.learning.learning_phase import network_features, predict
-from regrasp_drake.paths import MODELS_DIR
+from regrasp_drake.paths import MODELS_DIR, OUT_DIR
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.plots import plot_episode
 from regrasp_drake.station.episode import run_episode
@@ -42,7 +43,7 @@ def main() -> int:
                         "table1-row2), or with --object-file one of the file's")
     parser.add_argument("--object-file", type=Path,
                         help="your own objects (its first unless --object)")
-    parser.add_argument("--out", type=Path, default=Path("throw_catch.html"))
+    parser.add_argument("--out", type=Path, default=OUT_DIR / "throw_catch.html")
     args = parser.parse_args()
     torch.set_num_threads(1)
     try:
@@ -62,6 +63,7 @@ def main() -> int:
     result = run_episode(scenario, obj, ik=ik, X_WG=plan.X_WG,
                          catch_parameters=(h_catch, h_down), meshcat=meshcat,
                          throw_number=2)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
     save_html(meshcat, args.out)
     plot_episode(result, args.out.with_suffix(".png"))
     print(json.dumps(result.summary() | {

@@ -1,12 +1,16 @@
 """The command line: `regrasp-drake <command> …`.
 
 Every error from bad input is one line on stderr and exit status 2, found
-before any simulation (docs/input-checks.md lists what is checked). Ctrl-C
-ends a command with one line and exit status 130; what it has written so
-far (a map's rows, a data set's entries) is kept and resumed by the next run.
+before any simulation (docs/input-checks.md lists what is checked), the
+outputs' included: no existing file that is not the command's own is
+overwritten. Outputs given no path go to --out-dir (default paths.OUT_DIR,
+out/ at the top of the repository). Ctrl-C ends a command with one line and
+exit status 130; what it has written so far (a map's rows, a data set's
+entries) is kept and resumed by the next run.
 """
 
 import argparse
+import io
 import json
 import os
 import signal
@@ -33,11 +37,29 @@ def _add_scenario_arg(p: argparse.ArgumentParser) -> None:
                    help="a scenario YAML file (default: the shipped defaults)")
 
 
+class _InOutDir:
+    """The default of an output argument: a file or directory name under
+    the command's --out-dir (filled in by _fill_defaults; `{entry}` stands
+    for the map's entry, _grid_entry). Not a str: argparse would convert
+    it with the argument's type."""
+
+    def __init__(self, name: str):
+        self.name = name
+
+
+def _add_out_dir_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--out-dir", metavar="DIR", type=Path,
+                   help="where the outputs given no path go (default: out/ "
+                        "at the top of the repository, which git ignores)")
+
+
 def _add_library_arg(p: argparse.ArgumentParser) -> None:
     from regrasp_drake.learning.library import DEFAULT_LIBRARY
-    p.add_argument("--library", metavar="F", type=Path, default=DEFAULT_LIBRARY,
+    p.add_argument("--library", metavar="F", type=Path,
+                   default=_InOutDir(DEFAULT_LIBRARY),
                    help=f"the regrasp library YAML (default: {DEFAULT_LIBRARY} "
-                        "in the current directory)")
+                        "in --out-dir)")
+    _add_out_dir_arg(p)
 
 
 def _cmd_objects(args) -> int:
@@ -79,25 +101,27 @@ def _cmd_catch(args) -> int:
     return 0
 
 
-def _cmd_grid(args) -> int:
-    from regrasp_drake.grid import format_map, success_map
-    from regrasp_drake.station.scenario import load_scenario
+def _grid_entry(args) -> str:
+    """The entry `grid` maps, named as `dataset` names it: <object>, or
+    <object>@K for the K-th catch point."""
     from regrasp_drake.world.objects import resolve_object
-    load_scenario(args.scenario)  # refuse a bad scenario before forking
     obj = resolve_object(name=args.object, file=args.object_file)
-    _check_workers(args.workers)
     if args.catch_point < 1:
         raise InputError(f"--catch-point: got {args.catch_point}, expected "
                          ">= 1")
-    entry = obj.name + ("" if args.catch_point == 1
-                        else f"@{args.catch_point}")
-    out = args.out or Path(f"grid-{entry}.jsonl")
-    if args.out is None:  # checked as every output is (_check_outputs)
-        _check_output_files(args, {"--out (default)": out})
+    return obj.name + ("" if args.catch_point == 1 else f"@{args.catch_point}")
+
+
+def _cmd_grid(args) -> int:
+    from regrasp_drake.grid import format_map, success_map
+    from regrasp_drake.station.scenario import load_scenario
+    load_scenario(args.scenario)  # refuse a bad scenario before forking
+    _check_workers(args.workers)
+    entry = _grid_entry(args)
     rows = success_map(object_name=args.object, object_file=args.object_file,
-                       scenario_path=args.scenario, out=out,
+                       scenario_path=args.scenario, out=args.out,
                        workers=args.workers, catch_point=args.catch_point)
-    print(f"{entry}: outcome of every cell (results in {out})")
+    print(f"{entry}: outcome of every cell (results in {args.out})")
     print(format_map(rows))
     if args.plot:
         from regrasp_drake.plots import plot_success_map
@@ -263,7 +287,6 @@ def _cmd_apply(args) -> int:
 
 def _cmd_dataset(args) -> int:
     from regrasp_drake.learning.dataset import generate
-    from regrasp_drake.paths import MODELS_DIR
     from regrasp_drake.station.scenario import load_scenario
     from regrasp_drake.world.objects import load_catalogue
     load_scenario(args.scenario)  # refuse a bad scenario before any work
@@ -276,8 +299,7 @@ def _cmd_dataset(args) -> int:
         if name not in catalogue:
             raise InputError(f"--objects: got {name!r}, expected a catalogue "
                              "object (see `regrasp-drake objects`)")
-    out = args.out or MODELS_DIR / "dataset"
-    provenance = generate(names, out, workers=args.workers,
+    provenance = generate(names, args.out, workers=args.workers,
                           backend=args.backend, scenario_path=args.scenario,
                           catch_points=args.catch_points)
     print(json.dumps({k: v for k, v in provenance.items() if k != "scenario"},
@@ -285,50 +307,71 @@ def _cmd_dataset(args) -> int:
     return 0
 
 
-def _cmd_train(args) -> int:
-    import torch
+def _train_files(out: Path) -> tuple[Path, Path]:
+    """The report (F.json) and the training curve (F_training.png) `train`
+    writes beside the weights F."""
+    return out.with_suffix(".json"), out.with_name(out.stem + "_training.png")
 
-    from regrasp_drake.learning.train import train
+
+def _cmd_train(args) -> int:
+    from regrasp_drake.learning.dataset import load_training_data
     from regrasp_drake.paths import MODELS_DIR
-    torch.set_num_threads(1)
     if args.splits < 1:
         raise InputError(f"--splits: got {args.splits}, expected an integer "
                          ">= 1")
     if args.seed < 0:
         raise InputError(f"--seed: got {args.seed}, expected an integer >= 0")
     data = args.data or MODELS_DIR / "dataset"
-    out = args.out or MODELS_DIR / "catch_mlp.pt"
-    report = train(data, out, seed=args.seed,
-                   curve_png=out.with_name(out.stem + "_training.png"))
+    load_training_data(data)  # refuse a bad data set before importing torch
+    import torch
+
+    from regrasp_drake.learning.train import train
+    torch.set_num_threads(1)
+    out = args.out
+    report_json, curve_png = _train_files(out)
+    report = train(data, out, seed=args.seed, curve_png=curve_png,
+                   report_json=report_json)
     if args.splits > 1:
         from regrasp_drake.learning.train import repeated_splits
         report["repeated_splits"] = repeated_splits(
             data, range(args.seed, args.seed + args.splits))
-        out.with_suffix(".json").write_text(json.dumps(report, indent=1) + "\n")
+        report_json.write_text(json.dumps(report, indent=1) + "\n")
     print(json.dumps({k: v for k, v in report.items() if k != "split"},
                      indent=1))
     if not report["held_out"]:
         print("regrasp-drake train: warning: fewer than 3 objects in the data "
               "set: trained, validated and tested on the same samples (no "
               "held-out figures)", file=sys.stderr)
-    print(f"weights: {out}; report: {out.with_suffix('.json')}; curve: "
-          f"{out.with_name(out.stem + '_training.png')}", file=sys.stderr)
+    print(f"weights: {out}; report: {report_json}; curve: {curve_png}",
+          file=sys.stderr)
     return 0
 
 
 def _cmd_table1(args) -> int:
     import torch
 
-    from regrasp_drake.learning.table1 import format_markdown, run_table1, write_outputs
+    from regrasp_drake.learning.table1 import (
+        format_markdown,
+        object_names,
+        run_table1,
+        write_outputs,
+    )
     from regrasp_drake.planning.ik import ArmIk
     from regrasp_drake.station.scenario import load_scenario
+    from regrasp_drake.world.objects import resolve_object
     torch.set_num_threads(1)
     _check_first_throw_args(args)
     scenario = load_scenario(args.scenario)
     model = _load_network(args, scenario)
+    flight_predictor = _flight_predictor(args)
+    for name in object_names(args.objects):  # all of them before any throw
+        try:
+            resolve_object(name=name)
+        except InputError as e:
+            raise InputError(f"--objects: {e}") from None
     rows = run_table1(scenario, model, ik=ArmIk(), library_path=args.library,
-                      maps_dir=None if args.no_maps else args.maps_dir,
-                      flight_predictor=_flight_predictor(args),
+                      maps_dir=args.maps_dir,
+                      flight_predictor=flight_predictor,
                       objects=args.objects, max_throws=args.max_throws,
                       at_release=args.at_release, search=args.search)
     print(format_markdown(rows))
@@ -347,9 +390,8 @@ def _cmd_train_flight(args) -> int:
     torch.set_num_threads(1)
     scenario = load_scenario(args.scenario)
     data = args.data or MODELS_DIR / "dataset"
-    out = args.out or MODELS_DIR / "flight_predictor.json"
     held_out = [o for o in load_catalogue().values() if o.set != "train"]
-    report = train_from_dataset(data, scenario, out, ik=ArmIk(),
+    report = train_from_dataset(data, scenario, args.out, ik=ArmIk(),
                                 eval_objects=held_out, progress=sys.stderr)
     print(json.dumps(report, indent=1))
     return 0
@@ -396,8 +438,11 @@ def make_parser() -> argparse.ArgumentParser:
     _add_object_args(p)
     _add_scenario_arg(p)
     p.add_argument("--out", type=Path, metavar="F",
+                   default=_InOutDir("grid-{entry}.jsonl"),
                    help="JSON lines, written as cells finish; an existing "
-                        "file is resumed (default grid-<object>.jsonl)")
+                        "map is resumed (default grid-<object>.jsonl, or "
+                        "grid-<object>@K.jsonl, in --out-dir)")
+    _add_out_dir_arg(p)
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                    metavar="N", help="worker processes (default: all cores)")
     p.add_argument("--catch-point", type=int, default=1, metavar="K",
@@ -462,14 +507,23 @@ def make_parser() -> argparse.ArgumentParser:
                    help="catch points per object, each with its own map and "
                         "label (default 4)")
     p.add_argument("--out", type=Path, metavar="DIR",
-                   help="output directory (default models/dataset)")
+                   default=_InOutDir("dataset"),
+                   help="output directory; an existing data set is resumed "
+                        "(default dataset/ in --out-dir; the shipped one is "
+                        "models/dataset)")
+    _add_out_dir_arg(p)
     p.set_defaults(func=_cmd_dataset)
 
     p = sub.add_parser("train", help="train the catch network on a data set")
     p.add_argument("--data", type=Path, metavar="DIR",
                    help="data set directory (default models/dataset)")
     p.add_argument("--out", type=Path, metavar="F",
-                   help="weights file (default models/catch_mlp.pt)")
+                   default=_InOutDir("catch_mlp.pt"),
+                   help="weights file, with its report F.json and training "
+                        "curve F_training.png beside it (default "
+                        "catch_mlp.pt in --out-dir; the shipped network is "
+                        "models/catch_mlp.pt)")
+    _add_out_dir_arg(p)
     p.add_argument("--seed", type=int, default=0,
                    help="seed of the split and the initial weights")
     p.add_argument("--splits", type=int, default=20, metavar="N",
@@ -489,10 +543,11 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("--markdown", type=Path, metavar="F",
                    help="write the table")
     maps = p.add_mutually_exclusive_group()
-    maps.add_argument("--maps-dir", type=Path, default=Path("table1-maps"),
-                      metavar="DIR", help="each test object's success map, "
-                      "with the search marked (JSON lines + PNG; default "
-                      "table1-maps)")
+    maps.add_argument("--maps-dir", type=Path,
+                      default=_InOutDir("table1-maps"), metavar="DIR",
+                      help="each test object's success map, with the search "
+                           "marked (JSON lines + PNG; an existing map is "
+                           "resumed; default table1-maps/ in --out-dir)")
     maps.add_argument("--no-maps", action="store_true",
                       help="skip the success maps (150 episodes per object)")
     p.add_argument("--max-throws", type=int, metavar="N",
@@ -510,16 +565,37 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("--data", type=Path, metavar="DIR",
                    help="data set directory (default models/dataset)")
     p.add_argument("--out", type=Path, metavar="F",
-                   help="the predictor (default models/flight_predictor.json)")
+                   default=_InOutDir("flight_predictor.json"),
+                   help="the predictor, with its report F.report.json beside "
+                        "it (default flight_predictor.json in --out-dir; the "
+                        "shipped one is models/flight_predictor.json)")
+    _add_out_dir_arg(p)
     p.set_defaults(func=_cmd_train_flight)
     return parser
 
 
-# The arguments that name a file a command writes (`apply` only reads its
-# --library), and those that name a directory it makes and writes into.
-_OUTPUT_FILES = ("json", "html", "plot", "markdown", "library", "out")
-_OUTPUT_DIRS = ("maps_dir",)
-# The arguments that name a file or directory a command reads.
+# ---- outputs ------------------------------------------------------------------
+# Every argument that names a file or directory a command writes, with what
+# it holds: that says when an existing one is ours to overwrite or resume
+# (_check_ours). tests/test_cli.py holds every Path argument of every command
+# to being here or in _INPUTS.
+_OUTPUTS = {
+    "catch": {"html": "replay", "json": "json", "plot": "plot"},
+    "grid": {"out": "map", "plot": "plot"},
+    "throw": {"json": "json", "plot": "plot"},
+    "learn": {"library": "library", "html": "replay", "json": "json",
+              "plot": "plot"},
+    "apply": {"html": "replay", "json": "json"},
+    "dataset": {"out": "data set"},
+    "train": {"out": "weights"},
+    "table1": {"library": "library", "json": "json", "markdown": "table",
+               "maps_dir": "maps"},
+    "train-flight": {"out": "flight model"},
+}
+# What the directories a command makes hold.
+_DIRECTORIES = ("data set", "maps", "outputs")
+# The arguments that name a file or directory a command reads (and `apply`'s
+# --library); --out-dir holds the outputs given no path.
 _INPUTS = ("object_file", "scenario", "weights", "flight_model", "data")
 # Worker processes beyond this many per core only slow a run down.
 _WORKERS_PER_CORE = 4
@@ -532,47 +608,102 @@ def _check_workers(workers: int) -> None:
                          f"({_WORKERS_PER_CORE} per core of this machine)")
 
 
-def _outputs(args) -> tuple[dict, dict]:
-    """{flag: path} of the files and of the directories the command writes."""
-    files, dirs = {}, {}
-    for name in _OUTPUT_FILES + _OUTPUT_DIRS:
-        path = getattr(args, name, None)
-        if (not isinstance(path, Path)
-                or (name == "library" and args.command == "apply")
-                or (name == "maps_dir" and args.no_maps)):
+def _fill_defaults(args) -> None:
+    """Puts every output given no path (an _InOutDir default) under
+    --out-dir (default paths.OUT_DIR); sets args.out_dir to that directory
+    when an output went there, else to None (main makes it once every
+    output is checked)."""
+    from regrasp_drake.paths import OUT_DIR
+    out_dir = getattr(args, "out_dir", None) or OUT_DIR
+    used = False
+    for dest, value in list(vars(args).items()):
+        if not isinstance(value, _InOutDir):
             continue
-        flag = "--" + name.replace("_", "-")
-        is_dir = name in _OUTPUT_DIRS or (name == "out" and
-                                          args.command == "dataset")
-        (dirs if is_dir else files)[flag] = path
-    return files, dirs
+        if dest == "maps_dir" and args.no_maps:
+            setattr(args, dest, None)
+            continue
+        name = (value.name.format(entry=_grid_entry(args))
+                if "{entry}" in value.name else value.name)
+        setattr(args, dest, out_dir / name)
+        used |= dest in _OUTPUTS.get(args.command, {})
+    if "out_dir" in vars(args):
+        args.out_dir = out_dir if used else None
+
+
+def _outputs(args) -> dict:
+    """{label: (path, what it holds)} of everything the command writes: the
+    outputs its arguments name (labelled with the flag), the files it
+    writes beside them (the flag and which file), and --out-dir when an
+    output went there."""
+    outputs = {}
+
+    def add(label, path, holds):
+        outputs[label] = (Path(path), holds)
+        for which, (other, other_holds) in _beside(args, path, holds).items():
+            add(f"{label} ({which})", other, other_holds)
+
+    if getattr(args, "out_dir", None) is not None:
+        add("--out-dir", args.out_dir, "outputs")
+    for dest, holds in _OUTPUTS.get(args.command, {}).items():
+        if getattr(args, dest, None) is not None:
+            add("--" + dest.replace("_", "-"), getattr(args, dest), holds)
+    return outputs
+
+
+def _beside(args, path, holds) -> dict:
+    """{which: (path, what it holds)} of the files a command writes beside
+    an output (or, for --maps-dir, in it)."""
+    if holds == "map":
+        from regrasp_drake.grid import plan_path
+        return {"its plan": (plan_path(path), "json")}
+    if holds == "weights":
+        report_json, curve_png = _train_files(path)
+        return {"its report": (report_json, "json"),
+                "its training curve": (curve_png, "plot")}
+    if holds == "flight model":
+        from regrasp_drake.learning.flight_predictor import report_path
+        return {"its report": (report_path(path), "json")}
+    if holds == "maps":
+        from regrasp_drake.learning.table1 import map_paths, object_names
+        files = {}
+        for name in object_names(args.objects):
+            rows, png = map_paths(path, name)
+            files[f"{name}'s map"] = (rows, "map")
+            files[f"{name}'s plot"] = (png, "plot")
+        return files
+    return {}
 
 
 def _check_outputs(args) -> None:
-    """Refuses, before any work, an output path that could not be written
-    (a file's directory must exist and be writable; a directory the command
-    makes must lie under a writable one), that is another output or an
-    input of the command, or that is an existing file not ours
-    (_check_output_files)."""
-    files, dirs = _outputs(args)
-    for flag, path in (files | dirs).items():
-        check_output_path(flag, path, makes_directory=flag in dirs)
+    """Refuses, before any work (InputError naming the argument), an output
+    that could not be written (errors.check_output_path: a file's directory
+    must exist, or be one the command makes, and be writable), that is
+    another output or an input of the command, or that exists and is not
+    ours (_check_ours)."""
+    outputs = _outputs(args)
+    made = {path for path, holds in outputs.values() if holds in _DIRECTORIES}
+    for label, (path, holds) in outputs.items():
+        if (holds not in _DIRECTORIES and path.parent in made
+                and not path.parent.exists()):
+            continue  # in a directory the command makes, checked as one
+        check_output_path(label, path, makes_directory=holds in _DIRECTORIES)
     inputs = {"--" + name.replace("_", "-"): getattr(args, name)
               for name in _INPUTS if isinstance(getattr(args, name, None), Path)}
     if args.command == "apply":
         inputs["--library"] = args.library
     seen = {}
-    for flag, path in (files | dirs).items():
+    for label, (path, holds) in outputs.items():
+        if holds == "outputs":
+            continue
         for other, other_path in list(seen.items()) + list(inputs.items()):
             if _same_path(path, other_path):
                 what = "output" if other in seen else "input"
-                raise InputError(f"{flag}: got {quote(str(path))}, the same "
+                raise InputError(f"{label}: got {quote(str(path))}, the same "
                                  f"path as the {what} {other}, expected "
                                  "another path")
-        seen[flag] = path
-    _check_output_files(args, files)
-    if "--out" in dirs:
-        _check_dataset_dir(dirs["--out"])
+        seen[label] = path
+    for label, (path, holds) in outputs.items():
+        _check_ours(label, path, holds)
 
 
 def _same_path(a: Path, b: Path) -> bool:
@@ -580,64 +711,156 @@ def _same_path(a: Path, b: Path) -> bool:
     return Path(a).resolve() == Path(b).resolve()
 
 
-def _check_output_files(args, files: dict) -> None:
-    """Refuses an existing output that is not ours: a map (--out of grid)
-    without its F.plan.json beside it or with a malformed row; a library
-    that does not load; a --json file that is not JSON (a device such as
-    /dev/null is fine). And a --plot whose extension matplotlib cannot
-    write."""
+# What an existing output holds when it is ours (a file of that kind the
+# command may overwrite), and the test of it: None when it is, else why not.
+_OURS = {
+    "json": ("JSON", lambda path: _refusal(_load_json, path)),
+    "library": ("a regrasp library", lambda path: _refusal(_load_library, path)),
+    "replay": ("a Meshcat replay", lambda path: _replay_reason(path)),
+    "table": ("a table this command wrote", lambda path: _table_reason(path)),
+    "plot": ("a plot matplotlib wrote", lambda path: _plot_reason(path)),
+    "weights": ("a network's weights file",
+                lambda path: _refusal(_load_weights, path)),
+    "flight model": ("a flight predictor",
+                     lambda path: _refusal(_load_flight_model, path)),
+}
+
+
+def _check_ours(label: str, path: Path, holds: str) -> None:
+    """Refuses an existing output that is not ours: a map without its
+    F.plan.json beside it or with a malformed row (_check_map); a data set
+    directory that holds no data set; a file that is not what the output
+    holds (_OURS: a --json that is not JSON, a --plot matplotlib did not
+    write, …). New and empty files, and devices such as /dev/null, are
+    fine. And a plot whose extension matplotlib cannot write."""
+    if holds == "plot":
+        _check_plot_extension(label, path)
+    if holds == "data set":
+        _check_dataset_dir(label, path)
+    if holds in _DIRECTORIES or not path.exists():
+        return
+    if holds == "map":
+        _check_map(label, path)
+        return
+    if not path.is_file() or not path.stat().st_size:
+        return
+    what, reason = _OURS[holds][0], _OURS[holds][1](path)
+    if reason is not None:
+        raise InputError(f"{label}: got {quote(str(path))}, an existing file "
+                         f"that is not {what} (not ours: {reason}), expected "
+                         f"a new file or {what} to overwrite")
+
+
+def _refusal(load, path) -> str | None:
+    """None when load(path) reads the file, else its refusal."""
+    try:
+        load(path)
+    except InputError as e:
+        return str(e)
+    return None
+
+
+def _load_json(path):
     from regrasp_drake.input_files import load_json
-    for flag, path in files.items():
-        if flag == "--plot":
-            _check_plot_extension(path)
-        if not path.exists():
-            continue
-        if flag.startswith("--out") and args.command == "grid":
-            from regrasp_drake.grid import plan_path, read_rows
-            if path.is_file() and path.stat().st_size and not (
-                    plan_path(path).exists()):
-                raise InputError(
-                    f"{flag}: got {quote(str(path))}, an existing file "
-                    f"without {plan_path(path).name} beside it (not a map "
-                    "this command began), expected a new file or a map to "
-                    "resume")
-            try:  # a malformed row: refused, naming its line
-                read_rows(path)
-            except InputError as e:
-                raise InputError(f"{flag}: {e}") from None
-        elif flag == "--library":
-            from regrasp_drake.learning.library import load_library
-            try:
-                load_library(path)
-            except InputError as e:
-                raise InputError(f"--library: {e}") from None
-        elif flag == "--json" and path.is_file() and path.stat().st_size:
-            try:
-                load_json(path)
-            except InputError as e:
-                raise InputError(f"--json: got {quote(str(path))}, an "
-                                 "existing file that is not JSON (not a "
-                                 f"result of ours: {e}), expected a new file "
-                                 "or an earlier result") from None
+    return load_json(path)
 
 
-def _check_plot_extension(path: Path) -> None:
+def _load_library(path):
+    from regrasp_drake.learning.library import load_library
+    return load_library(path)
+
+
+def _load_weights(path):
+    from regrasp_drake.station.mlp_system import load_weights
+    return load_weights(path)
+
+
+def _load_flight_model(path):
+    from regrasp_drake.learning.flight_predictor import FlightPredictor
+    return FlightPredictor.load(path)
+
+
+def _replay_reason(path: Path) -> str | None:
+    """A Meshcat page (Meshcat.StaticHtml) has its title in its first lines."""
+    with open(path, "rb") as f:
+        head = f.read(4096)
+    if b"<title>Drake MeshCat</title>" in head:
+        return None
+    return "no <title>Drake MeshCat</title> in its first 4096 bytes"
+
+
+def _table_reason(path: Path) -> str | None:
+    from regrasp_drake.input_files import read_text
+    from regrasp_drake.learning.table1 import format_markdown
+    header = format_markdown([]).splitlines()[0]
+    try:
+        text = read_text(path, "Markdown table")
+    except InputError as e:
+        return str(e)
+    return (None if text.startswith(header)
+            else "its first line is not the table's header")
+
+
+def _plot_reason(path: Path) -> str | None:
+    """matplotlib names itself in the PNG, PDF, SVG and PostScript files it
+    writes; it leaves no mark in the other formats (JPEG, TIFF, …), whose
+    existing files are therefore never overwritten."""
+    import gzip
+    import zlib
+
+    from regrasp_drake.input_files import read_bytes
+    try:
+        data = read_bytes(path, "plot")
+        if path.suffix.lower() == ".svgz":
+            data = gzip.GzipFile(fileobj=io.BytesIO(data)).read(len(data) * 20)
+    except (InputError, OSError, EOFError, zlib.error) as e:
+        return str(e)
+    if b"matplotlib" in data.lower():
+        return None
+    if path.suffix.lower() in (".png", ".pdf", ".svg", ".svgz", ".eps", ".ps"):
+        return "no mark of matplotlib in it"
+    return (f"matplotlib leaves no mark in a {path.suffix} file, so this "
+            "command cannot tell one it wrote")
+
+
+def _check_map(label: str, path: Path) -> None:
+    """A map (grid's --out, table1's maps) is ours only with its F.plan.json
+    beside it, and resumed only with every row whole (a malformed row is
+    refused naming its line; a last line cut by a kill is computed again)."""
+    from regrasp_drake.grid import plan_path, read_rows
+    if path.is_file() and path.stat().st_size and not plan_path(path).exists():
+        raise InputError(
+            f"{label}: got {quote(str(path))}, an existing file without "
+            f"{plan_path(path).name} beside it (not a map this command "
+            "began), expected a new file or a map to resume")
+    try:
+        read_rows(path)
+    except InputError as e:
+        raise InputError(f"{label}: {e}") from None
+
+
+def _check_plot_extension(label: str, path: Path) -> None:
+    import shutil
+
+    import matplotlib
     from matplotlib.backends.backend_agg import FigureCanvasAgg
-    kinds = FigureCanvasAgg.get_supported_filetypes()
+    kinds = set(FigureCanvasAgg.get_supported_filetypes())
+    if not shutil.which(matplotlib.rcParams["pgf.texsystem"]):
+        kinds.discard("pgf")  # written through a TeX system, absent here
     if path.suffix.lower().lstrip(".") not in kinds:
-        raise InputError(f"--plot: got {quote(str(path))}, expected a file "
+        raise InputError(f"{label}: got {quote(str(path))}, expected a file "
                          "name ending in one of "
                          f"{', '.join('.' + k for k in sorted(kinds))}")
 
 
-def _check_dataset_dir(path: Path) -> None:
+def _check_dataset_dir(label: str, path: Path) -> None:
     """A data set's directory is ours when new, empty, or holding what
     `dataset` writes."""
     if not path.is_dir() or not any(path.iterdir()):
         return
     if not any((path / name).exists() for name in
                ("provenance.json", "scenario.yaml", "cells", "plans")):
-        raise InputError(f"--out: got {quote(str(path))}, an existing "
+        raise InputError(f"{label}: got {quote(str(path))}, an existing "
                          "directory that holds no data set, expected a new "
                          "or empty directory or a data set to resume")
 
@@ -666,7 +889,10 @@ def main(argv=None) -> int:
             raise InputError("--object, --object-file: got neither, expected "
                              "a catalogue object's name, an object file, or "
                              "both (the named object of the file)")
+        _fill_defaults(args)
         _check_outputs(args)
+        if getattr(args, "out_dir", None) is not None:
+            args.out_dir.mkdir(parents=True, exist_ok=True)
         return args.func(args)
     except InputError as e:
         # One line whatever the message holds, and never a huge one.

@@ -214,11 +214,12 @@ def map_source(scenario, obj, catch_point: int, plan) -> dict:
             "plan": plan.as_dict()}
 
 
-def check_resume(out: Path, source: dict) -> None:
+def check_resume(out: Path, source: dict, flag: str = "--out") -> None:
     """Before rows are appended to `out`: writes `source` to plan_path(out)
     for a new map; for a map begun earlier, refuses (InputError naming
-    --out) rows computed from anything else (another object, catch point,
-    scenario or plan), which resuming would mix into this map."""
+    `flag`, the argument that named the map) rows computed from anything
+    else (another object, catch point, scenario or plan), which resuming
+    would mix into this map."""
     from regrasp_drake.errors import InputError
     out, side = Path(out), plan_path(out)
     if side.exists():
@@ -226,25 +227,25 @@ def check_resume(out: Path, source: dict) -> None:
         try:
             stored = load_json(side)
         except InputError as e:
-            raise InputError(f"--out: {e}, expected what the map's rows "
+            raise InputError(f"{flag}: {e}, expected what the map's rows "
                              "were computed from") from None
         if not isinstance(stored, dict):
-            raise InputError(f"--out: {side}: not a JSON mapping, expected "
+            raise InputError(f"{flag}: {side}: not a JSON mapping, expected "
                              "what the map's rows were computed from")
         if stored != source:
             differs = [k for k in source if stored.get(k) != source[k]]
             raise InputError(
-                f"--out: {out} holds a map of {stored.get('object')} at catch "
-                f"point {stored.get('catch_point')} computed with another "
-                f"{', '.join(differs)} ({side}), expected one of "
+                f"{flag}: {out} holds a map of {stored.get('object')} at "
+                f"catch point {stored.get('catch_point')} computed with "
+                f"another {', '.join(differs)} ({side}), expected one of "
                 f"{source['object']} at catch point {source['catch_point']} "
-                "with this scenario: give another --out")
+                f"with this scenario: give another {flag}")
         return
     if read_rows(out):
         raise InputError(
-            f"--out: {out} holds cells but no {side.name} saying what they "
+            f"{flag}: {out} holds cells but no {side.name} saying what they "
             "were computed from, expected a new file or one this command "
-            "began: give another --out")
+            f"began: give another {flag}")
     side.write_text(json.dumps(source, indent=1) + "\n")
 
 

@@ -3,9 +3,12 @@
 import contextlib
 import io
 import json
+import os
+import signal
 import subprocess
 import sys
 import tempfile
+import time
 import unittest
 from pathlib import Path
 from unittest import mock
@@ -101,6 +104,18 @@ class TestCli(unittest.TestCase):
                 self.assertEqual(result.returncode, 2)
                 self.assertEqual(len(result.stderr.strip().splitlines()), 1)
                 self.assertIn(expected, result.stderr)
+
+    def test_table1_refuses_a_bad_object_before_any_throw(self):
+        from regrasp_drake import cli
+        err = io.StringIO()
+        with tempfile.TemporaryDirectory() as d, \
+                mock.patch("regrasp_drake.learning.table1.run_table1",
+                           side_effect=AssertionError("a throw ran")), \
+                contextlib.redirect_stderr(err):
+            code = cli.main(["table1", "--objects", "table1-row1", "none-such",
+                             "--no-maps", "--library", f"{d}/library.yaml"])
+        self.assertEqual(code, 2)
+        self.assertIn("--objects: object name: got 'none-such'", err.getvalue())
 
     def test_negative_seed_refused(self):
         result = _run("train", "--seed", "-1")
@@ -221,16 +236,28 @@ class OutputChecksTest(unittest.TestCase):
     def tearDown(self):
         self.tmp.cleanup()
 
-    def _refused(self, argv, fragment, *kept):
-        from regrasp_drake.cli import main
+    def _refused(self, argv, *fragments, kept=()):
+        """main(argv) exits with 2 and one line naming every fragment,
+        before the command starts, the files `kept` left as they were."""
+        from regrasp_drake import cli
         before = [p.read_bytes() for p in kept]
-        err = io.StringIO()
-        with contextlib.redirect_stderr(err):
-            code = main([str(a) for a in argv])
+        err, parser = io.StringIO(), cli.make_parser
+        with mock.patch.object(cli, "make_parser", lambda: _with_func(
+                parser(), _no_work)), contextlib.redirect_stderr(err):
+            code = cli.main([str(a) for a in argv])
         self.assertEqual(code, 2, err.getvalue())
         self.assertEqual(len(err.getvalue().strip().splitlines()), 1)
-        self.assertIn(fragment, err.getvalue())
+        for fragment in fragments:
+            self.assertIn(fragment, err.getvalue())
         self.assertEqual([p.read_bytes() for p in kept], before)
+
+    def _accepted(self, argv):
+        """The outputs of argv pass every check (the command is not run)."""
+        from regrasp_drake import cli
+        args = cli.make_parser().parse_args([str(a) for a in argv])
+        cli._fill_defaults(args)
+        cli._check_outputs(args)
+        return args
 
     def test_an_output_that_is_another_output_or_an_input(self):
         library = self.d / "library.yaml"
@@ -238,20 +265,20 @@ class OutputChecksTest(unittest.TestCase):
                        library, "--json", library], "the same path as")
         self._refused(["grid", "--object", "table1-row2", "--out",
                        self.d / "m", "--plot", self.d / "m"],
-                      "the same path as the output --plot")
+                      "--plot: got ", "the same path as the output --out")
         objects = _object_file(self.d, "shape: sphere, radius: 0.03")
         self._refused(["throw", "--object-file", objects, "--json", objects],
-                      "the same path as the input --object-file", objects)
+                      "the same path as the input --object-file", kept=[objects])
 
     def test_an_existing_file_that_is_not_ours(self):
         notes = self.d / "notes.txt"
         notes.write_text("my notes\n")
         self._refused(["grid", "--object", "table1-row2", "--out", notes],
-                      "without notes.txt.plan.json beside it", notes)
+                      "without notes.txt.plan.json beside it", kept=[notes])
         self._refused(["throw", "--object", "table1-row2", "--json", notes],
-                      "not JSON", notes)
+                      "not JSON", kept=[notes])
         self._refused(["learn", "--object", "table1-row2", "--library", notes],
-                      "--library:", notes)
+                      "--library:", kept=[notes])
 
     def test_a_resumed_map_with_a_malformed_row_names_its_line(self):
         rows = self.d / "m.jsonl"
@@ -259,15 +286,160 @@ class OutputChecksTest(unittest.TestCase):
                         '{"cell": [0, 1]}\n')
         (self.d / "m.jsonl.plan.json").write_text("{}\n")
         self._refused(["grid", "--object", "table1-row2", "--out", rows],
-                      "line 2: not a whole row (outcome", rows)
+                      "line 2: not a whole row (outcome", kept=[rows])
 
     def test_a_plot_matplotlib_cannot_write_and_too_many_workers(self):
         self._refused(["grid", "--object", "table1-row2", "--out",
                        self.d / "m.jsonl", "--plot", self.d / "m.xyz"],
                       "--plot: got")
-        self._refused(["grid", "--object", "table1-row2", "--out",
-                       self.d / "m.jsonl", "--workers", "100000"],
-                      "--workers: got 100000")
+        # Checked by the command, before its watching throw.
+        from regrasp_drake.cli import main
+        err = io.StringIO()
+        with contextlib.redirect_stderr(err):
+            code = main(["grid", "--object", "table1-row2", "--out",
+                         str(self.d / "m.jsonl"), "--workers", "100000"])
+        self.assertEqual(code, 2)
+        self.assertIn("--workers: got 100000", err.getvalue())
+
+    def test_every_path_argument_is_an_input_or_a_checked_output(self):
+        from regrasp_drake import cli
+        parser = cli.make_parser()
+        commands = parser._subparsers._group_actions[0].choices
+        for command, sub in commands.items():
+            for action in sub._actions:
+                if action.type is not Path or action.dest == "out_dir":
+                    continue
+                with self.subTest(command=command, argument=action.dest):
+                    self.assertTrue(
+                        action.dest in cli._OUTPUTS.get(command, {})
+                        or action.dest in cli._INPUTS
+                        or (command, action.dest) == ("apply", "library"))
+
+    def test_every_output_refuses_an_existing_file_not_ours(self):
+        # Each output of each command, given a file of notes (or a
+        # directory holding one where a directory is written).
+        from regrasp_drake import cli
+        minimal = {"catch": ["--object", "table1-row2", "--h-catch", "0.2",
+                             "--h-down", "-0.05"],
+                   "grid": ["--object", "table1-row2"],
+                   "throw": ["--object", "table1-row2"],
+                   "learn": ["--object", "table1-row2"],
+                   "apply": ["--object", "table1-row2"]}
+        refused = 0
+        for command, outputs in cli._OUTPUTS.items():
+            for dest, holds in outputs.items():
+                flag = "--" + dest.replace("_", "-")
+                with self.subTest(command=command, output=flag), \
+                        tempfile.TemporaryDirectory() as d:
+                    d = Path(d)
+                    notes = d / ("notes.png" if holds == "plot"
+                                 else "table1-row1.jsonl" if holds == "maps"
+                                 else "notes.txt")
+                    notes.write_text("my notes\n")
+                    target = d if holds in cli._DIRECTORIES else notes
+                    argv = [command, *minimal.get(command, []), flag, target]
+                    if command in ("learn", "table1") and dest != "library":
+                        argv += ["--library", d / "library.yaml"]
+                    self._refused(argv, f"{flag}", "expected a new",
+                                  kept=[notes])
+                    refused += 1
+        self.assertEqual(refused, sum(map(len, cli._OUTPUTS.values())))
+
+    def test_table1_refuses_a_stray_file_in_its_maps_dir_at_once(self):
+        # Each object's map and plot in --maps-dir are outputs as grid's
+        # are; the plan beside a map too.
+        maps = self.d / "maps"
+        maps.mkdir()
+        cases = (("table1-row1.jsonl", "not a map",
+                  "--maps-dir (table1-row1's map): got ", "without"),
+                 ("table1-row2.png", "not a plot",
+                  "--maps-dir (table1-row2's plot): got ", "not a plot"),
+                 ("table1-row5.jsonl.plan.json", "{",
+                  "--maps-dir (table1-row5's map) (its plan): got ",
+                  "not JSON"))
+        for name, text, *fragments in cases:
+            with self.subTest(name):
+                stray = maps / name
+                stray.write_text(text)
+                self._refused(["table1", "--maps-dir", maps, "--library",
+                               self.d / "library.yaml"], *fragments,
+                              kept=[stray])
+                stray.unlink()
+        # Other objects' files (--objects) are theirs.
+        (maps / "holdout-x.jsonl").write_text("not a map")
+        self._refused(["table1", "--objects", "holdout-x", "--maps-dir",
+                       maps], "--maps-dir (holdout-x's map)")
+
+    def test_outputs_of_ours_are_accepted(self):
+        # The shipped files, or files written as the commands write them:
+        # overwritten (or resumed) without a refusal.
+        from regrasp_drake.paths import MODELS_DIR
+        results = MODELS_DIR / "results"
+        d = self.d
+        for name in ("catch_mlp.pt", "catch_mlp.json", "catch_mlp_training.png",
+                     "flight_predictor.json", "flight_predictor.json.report.json"):
+            (d / name).write_bytes((MODELS_DIR / name).read_bytes())
+        self._accepted(["train", "--out", d / "catch_mlp.pt"])
+        self._accepted(["train-flight", "--out", d / "flight_predictor.json"])
+        maps = d / "maps"
+        maps.mkdir()
+        (maps / "table1-row1.jsonl").write_bytes(
+            (results / "maps" / "table1-row1.jsonl").read_bytes())
+        (maps / "table1-row1.jsonl.plan.json").write_text("{}\n")
+        (maps / "table1-row1.png").write_bytes(
+            (results / "maps" / "table1-row1.png").read_bytes())
+        for name in ("table1.md", "table1.json", "library_table1.yaml"):
+            (d / name).write_bytes((results / name).read_bytes())
+        self._accepted(["table1", "--markdown", d / "table1.md", "--json",
+                        d / "table1.json", "--library",
+                        d / "library_table1.yaml", "--maps-dir", maps])
+        (d / "replay.html").write_text(
+            "<!DOCTYPE html>\n<html>\n<head>\n  <meta charset=utf-8>\n"
+            "  <title>Drake MeshCat</title>\n</head>\n")
+        self._accepted(["catch", "--object", "table1-row2", "--h-catch", "0.2",
+                        "--h-down", "-0.05", "--html", d / "replay.html",
+                        "--json", "/dev/null", "--plot", d / "maps" /
+                        "table1-row1.png"])
+        (d / "dataset").mkdir()
+        (d / "dataset" / "provenance.json").write_text("{}\n")
+        self._accepted(["dataset", "--out", d / "dataset"])
+
+    def test_default_outputs_go_to_the_out_dir(self):
+        from regrasp_drake.paths import OUT_DIR, REPO_DIR
+        self.assertIn("/out/", (REPO_DIR / ".gitignore").read_text()
+                      .splitlines())
+        args = self._accepted(["grid", "--object", "table1-row2",
+                               "--catch-point", "2"])
+        self.assertEqual(args.out, OUT_DIR / "grid-table1-row2@2.jsonl")
+        args = self._accepted(["table1", "--out-dir", self.d / "o"])
+        self.assertEqual((args.library, args.maps_dir),
+                         (self.d / "o" / "regrasp_library.yaml",
+                          self.d / "o" / "table1-maps"))
+        for argv, dest, name in (
+                (["learn", "--object", "table1-row2"], "library",
+                 "regrasp_library.yaml"),
+                (["dataset"], "out", "dataset"),
+                (["train"], "out", "catch_mlp.pt"),
+                (["train-flight"], "out", "flight_predictor.json")):
+            with self.subTest(argv[0]):
+                args = self._accepted([*argv, "--out-dir", self.d / "o"])
+                self.assertEqual(getattr(args, dest), self.d / "o" / name)
+                self.assertEqual(args.out_dir, self.d / "o")
+        # apply reads the library learn wrote there, and writes nothing
+        # there; table1 --no-maps makes no maps directory.
+        args = self._accepted(["apply", "--object", "table1-row2",
+                               "--out-dir", self.d / "o"])
+        self.assertEqual((args.library, args.out_dir),
+                         (self.d / "o" / "regrasp_library.yaml", None))
+        self.assertIsNone(self._accepted(["table1", "--no-maps"]).maps_dir)
+        # The directory is made only once every output is checked.
+        self._refused(["learn", "--object", "table1-row2", "--out-dir",
+                       self.d / "new", "--plot", self.d / "p.xyz"], "--plot")
+        self.assertFalse((self.d / "new").exists())
+        (self.d / "notes.txt").write_text("my notes\n")
+        self._refused(["learn", "--object", "table1-row2", "--out-dir",
+                       self.d / "notes.txt"], "--out-dir: got",
+                      "expected a directory")
 
     def test_ctrl_c_ends_with_one_line_and_exit_130(self):
         from regrasp_drake import cli
@@ -284,6 +456,56 @@ class OutputChecksTest(unittest.TestCase):
         self.assertEqual(code, 130)
         self.assertEqual(len(err.getvalue().strip().splitlines()), 1)
         self.assertIn("interrupted", err.getvalue())
+
+
+class InterruptTest(unittest.TestCase):
+    """A real Ctrl-C (SIGINT to the process group, as a terminal sends it)
+    in the cheapest command that simulates: `grid` on one worker."""
+
+    def test_ctrl_c_keeps_the_rows_written_and_a_rerun_resumes(self):
+        with tempfile.TemporaryDirectory() as d:
+            out = Path(d) / "m.jsonl"
+            first = self._interrupted(out, rows=1)
+            # The rows written before Ctrl-C are kept, whole.
+            self.assertTrue(first.endswith(b"\n"))
+            from regrasp_drake.grid import plan_path, read_rows
+            n = len(read_rows(out))
+            self.assertEqual(n, first.count(b"\n"))
+            self.assertTrue(plan_path(out).exists())
+            # The rerun resumes: it keeps them and adds other cells.
+            second = self._interrupted(out, rows=n + 1)
+            self.assertEqual(second[:len(first)], first)
+            self.assertGreater(len(read_rows(out)), n)
+            self.assertEqual(len(read_rows(out)), second.count(b"\n"))
+
+    def _interrupted(self, out: Path, rows: int) -> bytes:
+        """Runs `grid` into out, sends SIGINT to its process group once out
+        holds `rows` rows; asserts exit 130 and one line on stderr; returns
+        out's bytes."""
+        process = subprocess.Popen(
+            [sys.executable, "-m", "regrasp_drake.cli", "grid", "--object",
+             "table1-row2", "--out", str(out), "--workers", "1"],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+            start_new_session=True)
+        deadline = time.monotonic() + 60
+        while not (out.exists() and out.read_bytes().count(b"\n") >= rows):
+            if process.poll() is not None or time.monotonic() > deadline:
+                process.kill()
+                self.fail(f"no {rows} rows: {process.communicate()[1]!r}")
+            time.sleep(0.05)
+        os.killpg(process.pid, signal.SIGINT)
+        stdout, stderr = process.communicate(timeout=30)
+        self.assertEqual(process.returncode, 130, stderr)
+        lines = stderr.decode().strip().splitlines()
+        self.assertEqual(len(lines), 1, stderr)
+        self.assertIn("grid: interrupted; what was written so far is kept",
+                      lines[0])
+        return out.read_bytes()
+
+
+def _no_work(args):
+    raise AssertionError(f"`{args.command}` started before its outputs were "
+                         "refused")
 
 
 def _with_func(parser, func):

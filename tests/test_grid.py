@@ -147,6 +147,17 @@ class ResumeCheckTest(unittest.TestCase):
                     self.assertIn(f"computed with another {key}", message)
                     self.assertNotIn("\n", message)
 
+    def test_refusals_name_the_argument_that_named_the_map(self):
+        # table1's maps in --maps-dir are checked as grid's --out is.
+        with tempfile.TemporaryDirectory() as d:
+            out = Path(d) / "table1-row1.jsonl"
+            check_resume(out, self.SOURCE, flag="--maps-dir")
+            with self.assertRaises(InputError) as e:
+                check_resume(out, self.SOURCE | {"object": "b"},
+                             flag="--maps-dir")
+            self.assertTrue(str(e.exception).startswith("--maps-dir: "))
+            self.assertIn("give another --maps-dir", str(e.exception))
+
     def test_rows_without_source_or_a_corrupt_source_refused(self):
         with tempfile.TemporaryDirectory() as d:
             out = Path(d) / "g.jsonl"

@@ -57,9 +57,9 @@ def constant_weights(path, h_catch, h_down) -> Path:
     return Path(path)
 
 
-def _cli(*args, cwd=None):
+def _cli(*args):
     return subprocess.run([sys.executable, "-m", "regrasp_drake.cli", *args],
-                          capture_output=True, text=True, timeout=600, cwd=cwd)
+                          capture_output=True, text=True, timeout=600)
 
 
 class TestPrediction(unittest.TestCase):
@@ -196,8 +196,11 @@ class TestCommandErrors(unittest.TestCase):
             self.assertIn(word, lines[0])
 
     def test_apply_before_learn(self):
-        self._refused(_cli("apply", "--object", OBJECT, cwd=self.d),
-                      OBJECT, "regrasp-drake learn", "regrasp_library.yaml")
+        # The default library, in --out-dir (where `learn` writes it).
+        self._refused(_cli("apply", "--object", OBJECT, "--out-dir",
+                           str(self.d)),
+                      OBJECT, "regrasp-drake learn",
+                      str(self.d / "regrasp_library.yaml"))
 
     def test_missing_and_corrupt_weights(self):
         missing = self.d / "none.pt"

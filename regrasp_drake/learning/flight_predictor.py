@@ -118,15 +118,22 @@ def _from_rotvec(r) -> RotationMatrix:
     return RotationMatrix(AngleAxis(angle, np.asarray(r) / angle))
 
 
+# Bounds of a saved predictor (load): its weights and input means within
+# ±_MAX_WEIGHT (the shipped ones within ±7, on inputs standardized to a few
+# units), its input stds above _MIN_STD (fit's floor).
+_MAX_WEIGHT = 1000.0
+_MIN_STD = 1e-12
+
+
 class FlightPredictor:
     """Predicts an object's free-flight state at free_time_s(scenario)."""
 
     def __init__(self, data: dict):
         self._d = data
-        self._mean = np.asarray(data["input_mean"])
-        self._std = np.asarray(data["input_std"])
-        self._W = np.asarray(data["weights"])
-        self._R_ref = RotationMatrix(np.asarray(data["R_ref"]))
+        self._mean = np.asarray(data["input_mean"], float)
+        self._std = np.asarray(data["input_std"], float)
+        self._W = np.asarray(data["weights"], float)
+        self._R_ref = RotationMatrix(np.asarray(data["R_ref"], float))
 
     # ---- fitting -------------------------------------------------------
     @staticmethod
@@ -211,25 +218,32 @@ class FlightPredictor:
                               "train-flight` again)")
         n_in = len(INPUT_NAMES)
         try:
-            W = np.asarray(data["weights"], float)
-            R = np.asarray(data["R_ref"], float)
-            std = np.asarray(data["input_std"], float)
-            ok = (W.shape == (1 + n_in, 12)
-                  and np.asarray(data["input_mean"], float).shape == (n_in,)
+            W, mean, std, R = (np.asarray(data[k], float) for k in (
+                "weights", "input_mean", "input_std", "R_ref"))
+            t = data["t_free_s"]
+            ok = (W.shape == (1 + n_in, 12) and mean.shape == (n_in,)
+                  and std.shape == (n_in,) and R.shape == (3, 3)
                   and list(data["inputs"]) == list(INPUT_NAMES)
-                  and std.shape == (n_in,) and np.all(std > 0)
-                  and R.shape == (3, 3)
+                  and data.get("terms") == {k: list(v)
+                                            for k, v in TERMS.items()}
+                  # (a null reads as NaN)
+                  and all(np.all(np.isfinite(a)) for a in (W, mean, std, R))
+                  and np.abs(W).max() <= _MAX_WEIGHT
+                  and np.abs(mean).max() <= _MAX_WEIGHT
+                  and np.all(std > _MIN_STD) and np.abs(R).max() <= 1 + 1e-6
                   and np.abs(R @ R.T - np.eye(3)).max() < 1e-6
                   and abs(np.linalg.det(R) - 1.0) < 1e-6
-                  and 0 < float(data["t_free_s"]) < 10)
-        except (KeyError, TypeError, ValueError):
+                  and type(t) in (int, float) and 0 < t < 10)
+        except (KeyError, TypeError, ValueError, OverflowError):
             ok = False
         if not ok:
             raise InputError(f"{path}: weights: malformed (expected a "
                              f"{1 + n_in}×12 matrix over the inputs "
-                             f"{', '.join(INPUT_NAMES)}, their normalization "
-                             "(std > 0), R_ref a rotation and t_free_s in "
-                             "(0, 10) s)")
+                             f"{', '.join(INPUT_NAMES)} fitted with this "
+                             "version's terms, and the inputs' "
+                             "normalization, all finite and within "
+                             f"±{_MAX_WEIGHT:g} (std > {_MIN_STD:g}), R_ref "
+                             "a rotation and t_free_s in (0, 10) s)")
         return FlightPredictor(data)
 
 
@@ -402,14 +416,21 @@ def summarize(rows) -> dict:
     return out
 
 
+# The bounds of a free-flight state's p_WO (m), w_WO (rad/s) and v_WO (m/s),
+# by their first row; its quaternion is a unit one within 0.05 (a logged
+# state's is within 0.01).
+_STATE_BOUNDS = ((4, 3.0), (7, 200.0), (10, 50.0))
+
+
 def dataset_flights(data_dir) -> tuple[list, list]:
     """The data set's training flights: (ObjectSpecs, their free-flight
     states at free_time_s), one per object in name order (an object's other
     catch points, <object>@k, share its watched throw)."""
-    from regrasp_drake.world.objects import resolve_object
+    from regrasp_drake.world.objects import load_catalogue
     data_dir = Path(data_dir)
     plans = sorted(p for p in (data_dir / "plans").glob("*.json")
                    if "@" not in p.stem)
+    catalogue = load_catalogue() if plans else {}
     objects, states = [], []
     for path in plans:
         entry = load_json(path)
@@ -419,13 +440,21 @@ def dataset_flights(data_dir) -> tuple[list, list]:
                              "again)")
         try:
             state = np.asarray(entry["free_flight"]["state"], float)
-            ok = state.shape == (13,) and isinstance(entry["object"], str)
-        except (KeyError, TypeError, ValueError):
+            ok = (state.shape == (13,) and isinstance(entry["object"], str)
+                  and abs(np.linalg.norm(state[:4]) - 1.0) <= 0.05
+                  and all(np.abs(state[k:k + 3]).max() <= bound
+                          for k, bound in _STATE_BOUNDS))
+        except (KeyError, TypeError, ValueError, OverflowError):
             ok = False
         if not ok:
             raise InputError(f"{path}: free_flight.state or object malformed, "
-                             "expected 13 numbers and an object name")
-        objects.append(resolve_object(name=entry["object"]))
+                             "expected 13 numbers (a unit quaternion, p_WO "
+                             "within ±3 m, w_WO within ±200 rad/s, v_WO "
+                             "within ±50 m/s) and an object name")
+        if entry["object"] not in catalogue:
+            raise field_error(f"{path}: object", entry["object"],
+                              "an object of the catalogue")
+        objects.append(catalogue[entry["object"]])
         states.append(state)
     return objects, states
 
@@ -439,8 +468,8 @@ def train_from_dataset(data_dir, scenario, out, *, ik, eval_objects=(),
     its true flight: catch position (mm), v_catch (m/s), catch time (ms),
     axis (degrees), and the offset and axis at the actual catch moment;
     and, for both, the predicted state after the throw against the actual
-    one (state_errors, the release_* fields). Also writes the report as
-    <out>.report.json."""
+    one (state_errors, the release_* fields). Also writes the report
+    (report_path: <out>.report.json)."""
     from regrasp_drake.throw_catch import watch
     objects, states = dataset_flights(data_dir)
     if len(objects) < 10:
@@ -471,6 +500,10 @@ def train_from_dataset(data_dir, scenario, out, *, ik, eval_objects=(),
               "cross_validation": {"summary": summarize(cv_rows),
                                    "objects": cv_rows},
               "evaluation": {"summary": summarize(rows), "objects": rows}}
-    Path(str(out) + ".report.json").write_text(json.dumps(report, indent=1)
-                                              + "\n")
+    report_path(out).write_text(json.dumps(report, indent=1) + "\n")
     return report
+
+
+def report_path(out) -> Path:
+    """Where train_from_dataset writes the report of the predictor at out."""
+    return Path(str(out) + ".report.json")

@@ -6,7 +6,8 @@ Those parameters hold only for the throw they were learned with, so an entry
 keeps its provenance: the scenario (file and a digest of its values) and the
 object's features; `apply` refuses an entry whose scenario or object differs.
 
-The file (default `regrasp_library.yaml` in the current directory):
+The file (the command line's default: `regrasp_library.yaml` under its
+`--out-dir`, by default `out/`):
 
     format: regrasp_drake.library
     version: 1
@@ -66,7 +67,8 @@ from regrasp_drake.station.scenario import H_CATCH_RANGE, H_DOWN_RANGE, Scenario
 from regrasp_drake.world.objects import DENSITY_RANGE, MAX_CENTER_M, NAME_PATTERN
 from regrasp_drake.world.robot import arm_joint_limits
 
-DEFAULT_LIBRARY = Path("regrasp_library.yaml")
+# Its file name when the command line is given none (under its --out-dir).
+DEFAULT_LIBRARY = "regrasp_library.yaml"
 _FORMAT = "regrasp_drake.library"
 _VERSION = 1
 _FEATURES = ("h_cm", "r_cm", "d_obj", "v_conv")

@@ -63,15 +63,20 @@ with --max-throws 12, stops it at 12).
 The other modes: README, "Table 1, held-out objects, noise".
 """
 
+import io
 import zipfile
 from pathlib import Path
 
 import numpy as np
 
-from regrasp_drake.errors import field_error
+from regrasp_drake.errors import InputError, field_error, quote
 from regrasp_drake.grid import H_CATCH_VALUES, H_DOWN_VALUES, cells
+from regrasp_drake.input_files import read_bytes
 from regrasp_drake.paths import MODELS_DIR
 
+# A maps.npz unpacks to at most this many bytes (the shipped one, 222
+# entries, to some 60 kB).
+_MAX_UNPACKED_BYTES = 64 * 1024 * 1024
 Cell = tuple[int, int]  # (i_catch, i_down): indices into grid.H_*_VALUES
 SHAPE = (len(H_CATCH_VALUES), len(H_DOWN_VALUES))  # (i_catch, i_down)
 
@@ -133,17 +138,27 @@ def load_prior_maps(path=PRIOR_MAPS_PATH, *, with_features: bool = False):
                 "`regrasp-drake dataset` writes")
     if not path.is_file():
         raise field_error("prior maps", str(path), f"an existing file: {expected}")
-    if not zipfile.is_zipfile(path):
+    try:  # a regular file of at most input_files.MAX_FILE_BYTES
+        raw = io.BytesIO(read_bytes(path, "data set's maps.npz"))
+    except InputError as e:
+        raise field_error("prior maps", str(path), f"{expected} ({e})") from None
+    if not zipfile.is_zipfile(raw):
         raise field_error("prior maps", str(path),
                           f"{expected} (the file is not an .npz archive)")
     try:
-        with np.load(path, allow_pickle=False) as data:
+        with zipfile.ZipFile(raw) as archive:  # no "zip bomb" unpacked
+            unpacked = sum(info.file_size for info in archive.infolist())
+        if unpacked > _MAX_UNPACKED_BYTES:
+            raise ValueError(f"its arrays unpack to {unpacked} bytes, more "
+                             f"than {_MAX_UNPACKED_BYTES}")
+        raw.seek(0)
+        with np.load(raw, allow_pickle=False) as data:
             names = [str(n) for n in data["objects"]]
             caught = np.asarray(data["caught"])
             features = (np.asarray(data["features"], float)
                         if "features" in data.files else None)
     except Exception as e:  # not an npz, a key missing, pickled objects
-        reason = f"{type(e).__name__}: {e}".replace("\n", " ")
+        reason = f"{type(e).__name__}: {quote(str(e))}"
         raise field_error("prior maps", str(path),
                           f"{expected} ({reason})") from None
     if (caught.ndim != 3 or caught.shape[1:] != SHAPE or caught.dtype != bool

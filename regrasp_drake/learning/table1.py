@@ -16,6 +16,18 @@ PAPER_TABLE1 = [
 ]
 
 
+def object_names(objects=None) -> list[str]:
+    """The objects of the table: `objects` (catalogue names), by default
+    the paper's five, table1-row1 … row5."""
+    return list(objects or [f"table1-row{r[0]}" for r in PAPER_TABLE1])
+
+
+def map_paths(maps_dir, name: str) -> tuple[Path, Path]:
+    """The success map (JSON lines, with its plan beside it as grid writes
+    it) and the PNG of object `name` under maps_dir."""
+    return Path(maps_dir) / f"{name}.jsonl", Path(maps_dir) / f"{name}.png"
+
+
 def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
                map_workers: int = 2, progress=sys.stderr,
                flight_predictor=None, objects=None,
@@ -38,13 +50,12 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
         load_library(library_path)  # a malformed file: refused before any throw
     rows = []
     first_throw = flight_predictor is not None or at_release
-    paper = PAPER_TABLE1
-    if objects:  # a Table 1 object keeps its row and the paper's figures
-        by_name = {f"table1-row{r[0]}": r for r in PAPER_TABLE1}
-        paper = [by_name.get(name, (k + 1, None, None, None, None, None))
-                 for k, name in enumerate(objects)]
-    for (row, obj_id, density, com, time_s, trials), name in zip(
-            paper, objects or [f"table1-row{r[0]}" for r in PAPER_TABLE1]):
+    names = object_names(objects)
+    by_name = {f"table1-row{r[0]}": r for r in PAPER_TABLE1}
+    # A Table 1 object keeps its row and the paper's figures.
+    paper = [by_name.get(name, (k + 1, None, None, None, None, None))
+             for k, name in enumerate(names)]
+    for (row, obj_id, density, com, time_s, trials), name in zip(paper, names):
         obj = resolve_object(name=name)
         try:
             result = learn(scenario, obj, model, ik=ik,
@@ -85,16 +96,19 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
                 "trials": trials},
         }
         if maps_dir is not None:
-            maps_dir = Path(maps_dir)
-            maps_dir.mkdir(parents=True, exist_ok=True)
-            cells = grid.run_map(scenario, obj, ik, result.plan,
-                                 maps_dir / f"{obj.name}.jsonl",
+            Path(maps_dir).mkdir(parents=True, exist_ok=True)
+            rows_path, png_path = map_paths(maps_dir, obj.name)
+            # What the rows are computed from, beside them (as `grid`
+            # keeps it): a rerun resumes only the same map.
+            grid.check_resume(rows_path, grid.map_source(
+                scenario, obj, 1, result.plan), flag="--maps-dir")
+            cells = grid.run_map(scenario, obj, ik, result.plan, rows_path,
                                  workers=map_workers,
                                  progress=progress is not None)
             entry["cells_caught"] = sum(r["outcome"] == "caught"
                                         for r in cells.values())
             png = plot_search(result.search_attempts, result.start_cell,
-                              maps_dir / f"{obj.name}.png",
+                              png_path,
                               title=f"{obj.name}: {result.throws} throws, "
                                     f"{entry['cells_caught']}/150 cells catch",
                               success_map=cells)

@@ -23,8 +23,11 @@ import torch
 
 from regrasp_drake import grid
 from regrasp_drake.errors import InputError
-from regrasp_drake.input_files import load_json
-from regrasp_drake.learning.dataset import FEATURE_NAMES, load_samples, object_of
+from regrasp_drake.learning.dataset import (
+    FEATURE_NAMES,
+    load_training_data,
+    object_of,
+)
 from regrasp_drake.station.mlp_system import CatchMlp, ParameterSpace, save_weights
 
 SPLIT = (44, 10, 10)  # the paper's training / validation / test counts
@@ -65,17 +68,14 @@ def _arrays(samples):
 
 
 def train(data_dir: Path, out: Path, *, seed: int = 0, epochs: int = 3000,
-          learning_rate: float = 0.01, curve_png: Path | None = None) -> dict:
-    """Trains on data_dir's samples, writes the weights to `out` (and the
-    training curve PNG), and returns the report (also written next to the
-    weights as <out>.json)."""
+          learning_rate: float = 0.01, curve_png: Path | None = None,
+          report_json: Path | None = None) -> dict:
+    """Trains on data_dir's samples, writes the weights to `out`, and
+    returns the report; writes the training curve to curve_png and the
+    report to report_json too, when given (the command line's names:
+    cli._train_files)."""
     data_dir, out = Path(data_dir), Path(out)
-    samples = load_samples(data_dir)
-    provenance = load_json(data_dir / "provenance.json") \
-        if (data_dir / "provenance.json").exists() else {}
-    if not isinstance(provenance, dict):
-        raise InputError(f"{data_dir / 'provenance.json'}: not a JSON "
-                         "mapping, expected the data set's provenance")
+    samples, maps, provenance = load_training_data(data_dir)
     train_i, val_i, test_i = split_indices(
         len(samples), seed, groups=[object_of(s["object"]) for s in samples])
     x, y = _arrays(samples)
@@ -96,7 +96,7 @@ def train(data_dir: Path, out: Path, *, seed: int = 0, epochs: int = 3000,
         model, lambda: loss("train"), lambda: -float(loss("val")),
         epochs=epochs, learning_rate=learning_rate)
 
-    report = evaluate(model, samples, data_dir, train_i, test_i)
+    report = evaluate(model, samples, maps, train_i, test_i)
     report |= {
         "samples": len(samples),
         "split": {"train": [samples[i]["object"] for i in train_i],
@@ -119,7 +119,8 @@ def train(data_dir: Path, out: Path, *, seed: int = 0, epochs: int = 3000,
     }
     out.parent.mkdir(parents=True, exist_ok=True)
     save_weights(out, model, metadata)
-    out.with_suffix(".json").write_text(json.dumps(report, indent=1) + "\n")
+    if report_json is not None:
+        Path(report_json).write_text(json.dumps(report, indent=1) + "\n")
     if curve_png is not None:
         _plot_curve(curve, best_epoch, curve_png)
     return report
@@ -178,10 +179,9 @@ def repeated_splits(data_dir: Path, seeds, *, epochs: int = 3000,
                             for k, v in rates.items()}}
 
 
-def evaluate(model, samples, data_dir, train_i, test_i) -> dict:
-    """Test-split errors and catch rates, with the two baselines."""
-    with np.load(Path(data_dir) / "maps.npz") as data:
-        maps = dict(zip(data["objects"].tolist(), data["caught"]))
+def evaluate(model, samples, maps, train_i, test_i) -> dict:
+    """Test-split errors and catch rates, with the two baselines; maps: each
+    sample's success map by entry name (load_training_data)."""
     x, y = _arrays(samples)
     space = ParameterSpace()
     with torch.no_grad():
