@@ -23,11 +23,10 @@ from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.tree import MultibodyForces
 
-from regrasp_drake.planning.free_flight import propagate
 from regrasp_drake.planning.ik import ArmIk, palm_up_pose
 
-# The state machine's time law of the move to the grasp pose.
-from regrasp_drake.station.catch_state_machine import quintic_from
+# The state machine's time law of every arm move.
+from regrasp_drake.station.catch_state_machine import _quintic
 from regrasp_drake.world.objects import ObjectSpec
 from regrasp_drake.world.robot import ARM_EFFORT_LIMITS
 
@@ -99,13 +98,8 @@ def lowest_point_along(obj: ObjectSpec, R_WO, p_WO, n_W) -> float:
 def catch_moments(t, object_state, obj: ObjectSpec, *, height_m: float,
                   band_m: float, ready_s: float, fall_m: float,
                   tilt_tolerance: float,
-                  flat_tolerance_m: float = 0.005,
-                  gravity_m_per_s2: float = 9.81) -> list[CatchPoint]:
+                  flat_tolerance_m: float = 0.005) -> list[CatchPoint]:
     """The moments of a logged flight at which the hand can catch, best first.
-
-    First the moments at which the axis is exactly horizontal
-    (`horizontal_moments`), from `ready_s` on and within `band_m` of
-    `height_m`; then the logged samples, ranked as follows.
 
     Candidates: the samples of the descent within `band_m` of `height_m`
     from `ready_s` on (the hand is in place). Order:
@@ -143,57 +137,7 @@ def catch_moments(t, object_state, obj: ObjectSpec, *, height_m: float,
     candidates.sort(key=lambda k: (
         tilted[k], rest[k] > flattest + flat_tolerance_m,
         -min(lowest[k_ready] - lowest[k], fall_m), abs(p[2, k] - height_m)))
-    exact = [point for point in horizontal_moments(
-        t, object_state, obj, gravity_m_per_s2=gravity_m_per_s2)
-        if point.t_s >= ready_s and abs(point.p_WO[2] - height_m) <= band_m]
-    return exact + [_point(t, p, v, R_WO, k) for k in candidates]
-
-
-def horizontal_moments(t, object_state, obj: ObjectSpec, *,
-                       gravity_m_per_s2: float = 9.81,
-                       iterations: int = 30) -> list[CatchPoint]:
-    """The moments of a logged flight's descent at which the object's
-    symmetry axis is exactly horizontal (y_O · z_W = 0), earliest first: the
-    crossing between two samples is found by propagating the free flight
-    from the sample before it (`free_flight.propagate`) and bisecting. So a
-    catch point is a property of the flight, not of the logging rate nor of
-    the time step: between a 1 ms and a 0.25 ms step its moment moves with
-    the flight itself (sample-picking would move it by a whole 4 ms
-    sample). Only stretches of free flight count (the centre of mass
-    accelerating at g, checked between the two samples)."""
-    t = np.asarray(t)
-    a = np.array([_rotation(object_state[:4, k])[2, 1]
-                  for k in range(len(t))])
-    g_W = np.array([0.0, 0.0, -gravity_m_per_s2])
-    inertia = obj.spatial_inertia()
-    p_OCm = inertia.get_com()
-    I_O = inertia.Shift(p_OCm).CalcRotationalInertia().CopyToFullMatrix3()
-    points = []
-    for k in range(len(t) - 1):
-        if a[k] == 0.0 or a[k] * a[k + 1] > 0.0 or object_state[12, k] >= 0:
-            continue
-        start = object_state[:, k]
-
-        def state_at(time):
-            return propagate(start, [t[k], time], p_OCm=p_OCm,
-                             I_CmCm_O=I_O, gravity_W=g_W)[:, -1]
-
-        end = state_at(t[k + 1])
-        if np.linalg.norm(end[4:7] - object_state[4:7, k + 1]) > 1e-4:
-            continue  # not free flight between the two samples
-        lo, hi = float(t[k]), float(t[k + 1])
-        for _ in range(iterations):
-            mid = 0.5 * (lo + hi)
-            if _rotation(state_at(mid)[:4])[2, 1] * a[k] > 0.0:
-                lo = mid
-            else:
-                hi = mid
-        x = state_at(0.5 * (lo + hi))
-        R = _rotation(x[:4])
-        points.append(CatchPoint(
-            t_s=0.5 * (lo + hi), p_WO=x[4:7].copy(), y_W=R[:, 1].copy(),
-            v_catch=float(x[12]), tilt=float(abs(R[2, 1])), R_WO=R))
-    return points
+    return [_point(t, p, v, R_WO, k) for k in candidates]
 
 
 def palm_frame(axis_W, max_tilt_rad: float, x_W=None) -> np.ndarray:
@@ -270,33 +214,24 @@ def palm_poses_for(catch_point: CatchPoint, grasp_radius_m: float,
 
 
 def move_torque_ratio(ik: ArmIk, q_start, q_end, duration_s: float,
-                      samples: int = 41, v_start=None,
-                      a_start=None) -> float:
+                      samples: int = 41) -> float:
     """The largest |τ_i| / effort limit_i the arm needs to follow the state
-    machine's move from q_start (with velocity v_start and acceleration
-    a_start, default at rest: the throw hands over a moving arm) to q_end at
-    rest in `duration_s` (`catch_state_machine.quintic_from`), by inverse
-    dynamics of the arm and hand (the object is in flight), gravity
-    included. Above 1 the servos saturate: the arm lags, overshoots and
-    reaches the grasp position late."""
+    machine's move from q_start to q_end in `duration_s` (a quintic in joint
+    space, at rest at both ends), by inverse dynamics of the arm and hand
+    (the object is in flight). Above 1 the servos saturate: the arm lags,
+    overshoots and reaches the grasp position late."""
     plant = ik.plant
     context = plant.CreateDefaultContext()
     forces = MultibodyForces(plant)
     q_start = np.asarray(q_start, float)
-    zeros = np.zeros_like(q_start)
-    v0 = zeros if v_start is None else np.asarray(v_start, float)
-    a0 = zeros if a_start is None else np.asarray(a_start, float)
-    q_end = np.asarray(q_end, float)
+    dq = np.asarray(q_end, float) - q_start
     worst = 0.0
     for tau in np.linspace(0.0, 1.0, samples):
-        q, v, a = quintic_from(min(tau, 1.0 - 1e-12), duration_s, q_start,
-                               v0, a0, q_end)
-        plant.SetPositions(context, q)
-        plant.SetVelocities(context, v)
-        # Gravity too: CalcInverseDynamics counts only the forces given.
-        forces.SetZero()
-        plant.CalcForceElementsContribution(context, forces)
-        torque = plant.CalcInverseDynamics(context, a, forces)
+        s, ds, dds = _quintic(tau)
+        plant.SetPositions(context, q_start + s * dq)
+        plant.SetVelocities(context, ds / duration_s * dq)
+        torque = plant.CalcInverseDynamics(
+            context, dds / duration_s**2 * dq, forces)
         worst = max(worst, float(np.max(np.abs(torque) / ARM_EFFORT_LIMITS)))
     return worst
 

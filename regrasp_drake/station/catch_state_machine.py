@@ -1,15 +1,11 @@
 """The catch state machine of the paper's Fig. 9, as a LeafSystem.
 
 Phases, in order:
-  SETTLE  the object settles on the open palm;
-  THROW   the arm tracks the palm toss (station/palm_toss.py), the fingers
-          open: the object leaves the palm when it brakes;
-  MOVE    once the object has left the palm, the arm moves to the grasp
-          position (or, when only watching, to a park pose out of the
-          flight's way), from the toss's moving state (a quintic from its
-          position, velocity and acceleration to rest): the brake and the
-          roll's stop blend into the move; the fingers pre-shape to a cage
-          (catch.preshape_closure);
+  SETTLE  the fingers close on the object lying in the palm;
+  THROW   the arm tracks the fixed throw trajectory; the fingers open at the
+          release time;
+  MOVE    the arm moves to the grasp position (or, when only watching, to a
+          park pose out of the flight's way);
   WAIT    the hand waits, palm up, until an approach sensor (IR 4-13) sees
           the object closer than h_catch;
   LOWER   the fingers close at their maximum speed while the hand is lowered
@@ -20,7 +16,7 @@ Phases, in order:
 
 The arm is commanded in joint space: every phase is a segment from q_a to q_b
 with a quintic time law (zero end velocity and acceleration), except the
-throw, which follows the toss's C2 cubic spline. The
+throw, which follows a C2 cubic spline through the scenario's knots. The
 grasp and lowered joint angles are solved by inverse kinematics once, when
 the phase that needs them starts.
 
@@ -41,9 +37,9 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
+from pydrake.trajectories import PiecewisePolynomial
 
 from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.station.palm_toss import TossDesign, toss_trajectory
 
 
 class Phase(enum.IntEnum):
@@ -59,18 +55,14 @@ class Phase(enum.IntEnum):
 
 # Plain numbers of the phases the per-step references test (faster than
 # the enum's attribute lookup).
-_THROW, _MOVE, _LOWER = int(Phase.THROW), int(Phase.MOVE), int(Phase.LOWER)
+_THROW, _LOWER = int(Phase.THROW), int(Phase.LOWER)
 
 # Layout of the discrete state vector.
 _PHASE, _T0, _T, _T_CLOSE, _T_OPEN, _H_DOWN, _TICK = range(7)
 _QA = slice(7, 13)
 _QB = slice(13, 19)
 _QGRASP = slice(19, 25)
-# A segment's start velocity and acceleration (zero but for the move that
-# takes over from the throw while the arm still moves).
-_V0 = slice(25, 31)
-_A0 = slice(31, 37)
-_SIZE = 37
+_SIZE = 25
 
 
 def lowered_pose(X_WG: RigidTransform, h_down: float) -> RigidTransform:
@@ -83,8 +75,7 @@ def lowered_pose(X_WG: RigidTransform, h_down: float) -> RigidTransform:
 
 @dc.dataclass(frozen=True)
 class ThrowPerturbation:
-    """One throw's release noise: the palm brakes `release_dt_s` late (it
-    cruises at the launch speed meanwhile; early: the lift ends sooner), and
+    """One throw's release noise: the fingers open `release_dt_s` late, and
     each arm joint's reference gets a smooth velocity pulse that peaks at
     `joint_dv_rad_per_s` at the release, v(τ) = dv · exp(-((τ - τ_r)/w)²)
     with w = PULSE_WIDTH_S (its position and acceleration follow)."""
@@ -120,26 +111,6 @@ class ThrowPerturbation:
         return phi * dv, g * dv, (-2.0 * u / w * g) * dv
 
 
-def quintic_from(tau, T, q0, v0, a0, q1):
-    """The quintic from (q0, v0, a0) at τ = 0 to q1 at rest (zero velocity
-    and acceleration) at τ = 1, τ = t / T: its (q, v, v̇) at τ (held at q1
-    after τ = 1)."""
-    if tau >= 1.0:
-        return q1, np.zeros_like(q1), np.zeros_like(q1)
-    tau = max(tau, 0.0)
-    c1, c2 = v0 * T, 0.5 * a0 * T * T
-    A = q1 - q0 - c1 - c2
-    B = -c1 - 2.0 * c2
-    C = -2.0 * c2
-    c3 = 10.0 * A - 4.0 * B + 0.5 * C
-    c4 = -15.0 * A + 7.0 * B - C
-    c5 = 6.0 * A - 3.0 * B + 0.5 * C
-    q = q0 + tau * (c1 + tau * (c2 + tau * (c3 + tau * (c4 + tau * c5))))
-    dq = c1 + tau * (2 * c2 + tau * (3 * c3 + tau * (4 * c4 + tau * 5 * c5)))
-    ddq = 2 * c2 + tau * (6 * c3 + tau * (12 * c4 + tau * 20 * c5))
-    return q, dq / T, ddq / (T * T)
-
-
 def _quintic(tau):
     """Time law s(τ), s'(τ), s''(τ) with zero end velocity and acceleration."""
     tau = min(max(tau, 0.0), 1.0)
@@ -171,7 +142,7 @@ class CatchStateMachine(LeafSystem):
         self._approach_range = scenario.sensors.approach_range_m
         self._open = np.asarray(hand_open, float)
         self._closed = np.asarray(hand_closed, float)
-        self._preshape = self._open + scenario.catch.preshape_closure * (
+        self._hold = self._open + scenario.throw.hold_closure * (
             self._closed - self._open)
         self._speed = finger_speed_rad_per_s
         self._zeros6 = np.zeros(6)
@@ -180,15 +151,15 @@ class CatchStateMachine(LeafSystem):
         t = scenario.throw
         self._t_throw = t.settle_s
         self._noise = None if perturbation.is_zero() else perturbation
-        design = TossDesign.of(t, brake_delay_s=perturbation.release_dt_s)
-        self._tau_release = design.brake_start_s
-        self._throw_s = design.handoff_s
-        self._t_release = t.settle_s + design.brake_start_s
-        self._t_throw_end = t.settle_s + design.handoff_s
-        self._spline = toss_trajectory(design, ik)
+        self._t_release = (t.settle_s + t.release_time_s
+                           + perturbation.release_dt_s)
+        self._t_throw_end = t.settle_s + t.knot_times_s[-1]
+        knots = np.array(t.knot_q_rad).T
+        self._spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(
+            t.knot_times_s, knots, np.zeros(6), np.zeros(6))
         self._spline_v = self._spline.derivative(1)
         self._spline_a = self._spline.derivative(2)
-        self._q_start = np.array(design.start_q)
+        self._q_start = knots[:, 0]
 
         self._ir = self.DeclareVectorInputPort("ir_levels", 13)
         self._params = self.DeclareVectorInputPort("catch_parameters", 2)
@@ -198,7 +169,7 @@ class CatchStateMachine(LeafSystem):
 
         x0 = np.zeros(_SIZE)
         x0[_PHASE] = Phase.SETTLE
-        x0[_T_CLOSE] = 0.0
+        x0[_T_CLOSE] = 0.0  # the fingers close on the object from the start
         x0[_T_OPEN] = self._t_release
         x0[_QA] = x0[_QB] = self._q_start
         x0[_T] = 1.0
@@ -225,14 +196,12 @@ class CatchStateMachine(LeafSystem):
     def _arm_reference(self, x, t):
         """The arm's (q, v, v̇) reference at time t in state x."""
         if x[_PHASE] == _THROW:
-            tau = min(t - self._t_throw, self._throw_s)
+            tau = min(t - self._t_throw, self._throw.knot_times_s[-1])
             return self._throw_reference(tau)
         T = x[_T]
         tau = (t - x[_T0]) / T
         if tau >= 1.0:  # the segment is done: rest at its end
             return x[_QB], self._zeros6, self._zeros6
-        if x[_PHASE] == _MOVE:  # from the throw's moving state
-            return quintic_from(tau, T, x[_QA], x[_V0], x[_A0], x[_QB])
         s, ds, dds = _quintic(tau)
         dq = x[_QB] - x[_QA]
         return x[_QA] + s * dq, ds / T * dq, dds / T**2 * dq
@@ -243,21 +212,20 @@ class CatchStateMachine(LeafSystem):
         v = self._spline_v.value(tau).ravel()
         a = self._spline_a.value(tau).ravel()
         if self._noise is not None:
-            dq, dv, da = self._noise.pulse(tau, self._tau_release)
+            dq, dv, da = self._noise.pulse(tau, self._throw.release_time_s)
             q, v, a = q + dq, v + dv, a + da
         return q, v, a
 
     def _hand_reference(self, x, t):
-        """The fingers' (q, v) reference at time t in state x: open while
-        settling and throwing; ramping at their maximum speed to the
-        pre-shaped cage after the throw, and from there to closed from
-        t_close once catching."""
-        if x[_PHASE] <= _THROW:
-            return self._open, self._zeros_hand
+        """The fingers' (q, v) reference at time t in state x: they ramp at
+        their maximum speed toward the hold posture (from t_close while
+        settling and throwing), open (from the release), or closed (from
+        t_close once catching)."""
+        if x[_PHASE] <= _THROW and t < self._t_release:
+            return self._ramp(self._open, self._hold, t - x[_T_CLOSE])
         if x[_PHASE] < _LOWER:
-            return self._ramp(self._open, self._preshape,
-                              t - self._t_throw_end)
-        return self._ramp(self._preshape, self._closed, t - x[_T_CLOSE])
+            return self._ramp(self._hold, self._open, t - self._t_release)
+        return self._ramp(self._open, self._closed, t - x[_T_CLOSE])
 
     def _ramp(self, q_from, q_to, elapsed):
         delta = q_to - q_from
@@ -296,12 +264,12 @@ class CatchStateMachine(LeafSystem):
         if phase == Phase.SETTLE and t >= self._t_throw:
             x[_PHASE] = Phase.THROW
         elif phase == Phase.THROW and t >= self._t_throw_end:
-            q_end, v_end, a_end = self._throw_reference(self._throw_s)
+            q_end = self._throw_reference(self._throw.knot_times_s[-1])[0]
             if self._park_q is not None:
                 q_target = self._park_q
             else:
                 X_WG = self._X_WG.Eval(context)
-                result = self._ik.solve(X_WG, q_end)
+                result = self._ik.solve(X_WG, self._catch.ik_seed_q_rad)
                 if not result.success:
                     return self._fail(x, f"grasp pose unreachable: "
                                       f"{result.reason()}")
@@ -309,7 +277,6 @@ class CatchStateMachine(LeafSystem):
             x[_QGRASP] = q_target
             self._start_segment(x, t, q_end, q_target,
                                 self._catch.move_to_grasp_s, Phase.MOVE)
-            x[_V0], x[_A0] = v_end, a_end
         elif (phase == Phase.MOVE and segment_done
               and self._park_q is None and self._at_grasp(context, x)):
             x[_PHASE] = Phase.WAIT
@@ -354,7 +321,6 @@ class CatchStateMachine(LeafSystem):
         x[_T] = duration
         x[_QA] = q_a
         x[_QB] = q_b
-        x[_V0] = x[_A0] = 0.0
 
     def _at_grasp(self, context, x):
         q = self._arm_state.Eval(context)[:6]
