@@ -24,6 +24,7 @@ from regrasp_drake.planning.catch_plan import (
 )
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.episode import EpisodeResult, run_episode
+from regrasp_drake.station.palm_toss import end_q, launch_s, throw_end_s
 from regrasp_drake.station.scenario import H_CATCH_RANGE, Scenario, load_scenario
 from regrasp_drake.world.objects import ObjectSpec, resolve_object
 
@@ -65,7 +66,7 @@ def seen_flight(scenario: Scenario, obj: ObjectSpec, result: EpisodeResult):
     ends early (first-throw mode replans from it when its catch fails)."""
     logs = result.logs
     t, states = logs.t, logs.object_state
-    t_free = scenario.throw.settle_s + scenario.throw.knot_times_s[-1]
+    t_free = scenario.throw.settle_s + throw_end_s(scenario.throw)
     g = np.array([0.0, 0.0, -scenario.gravity_m_per_s2])
     v_cm = []
     for k in range(states.shape[1]):
@@ -115,12 +116,12 @@ def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     least `min_separation_s` apart. Raises InputError when none is
     reachable."""
     c = scenario.catch
-    t_ready = (scenario.throw.settle_s + scenario.throw.knot_times_s[-1]
+    t_ready = (scenario.throw.settle_s + throw_end_s(scenario.throw)
                + c.move_to_grasp_s)
-    q_start = np.asarray(scenario.throw.knot_q_rad[-1], float)
+    q_start = end_q(scenario.throw, ik)
     # A flight that ends before the release (a watching throw stopped with
     # the object near the ground) says why there is no catch point.
-    t_release = scenario.throw.settle_s + scenario.throw.release_time_s
+    t_release = scenario.throw.settle_s + launch_s(scenario.throw)
     if (getattr(watched, "outcome", None) == "landed"
             and watched.logs.t[-1] < t_release):
         raise InputError(
@@ -128,11 +129,12 @@ def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
             f"t = {watched.logs.t[-1]:.3f} s, before the release at "
             f"{t_release:.3f} s, with the object near the ground (within "
             "monitor.ground_clearance_m of it, counting the object's size), "
-            "expected an object the hand holds up until the fingers open")
+            "expected an object the palm holds up until it is tossed")
     points = catch_moments(watched.logs.t, watched.logs.object_state, obj,
                            height_m=c.catch_height_m, band_m=c.height_band_m,
                            ready_s=t_ready, fall_m=H_CATCH_RANGE[1],
-                           tilt_tolerance=c.tilt_tolerance)
+                           tilt_tolerance=c.tilt_tolerance,
+                           gravity_m_per_s2=scenario.gravity_m_per_s2)
     if not points:
         raise InputError(
             f"object {obj.name}: no catch point (the watched flight never "
@@ -146,7 +148,7 @@ def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
             continue
         for side, X_WG in zip(("paper", "mirrored"),
                               catch_palm_poses(scenario, point, obj)):
-            result = ik.solve(X_WG, c.ik_seed_q_rad)
+            result = ik.solve(X_WG, q_start)
             where = f"at t = {point.t_s:.3f} s, {side} side"
             if not result.success:
                 reasons.append(f"{where}: {result.reason()}")

@@ -23,6 +23,7 @@ from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.tree import MultibodyForces
 
+from regrasp_drake.planning.free_flight import propagate
 from regrasp_drake.planning.ik import ArmIk, palm_up_pose
 
 # The state machine's time law of every arm move.
@@ -98,8 +99,13 @@ def lowest_point_along(obj: ObjectSpec, R_WO, p_WO, n_W) -> float:
 def catch_moments(t, object_state, obj: ObjectSpec, *, height_m: float,
                   band_m: float, ready_s: float, fall_m: float,
                   tilt_tolerance: float,
-                  flat_tolerance_m: float = 0.005) -> list[CatchPoint]:
+                  flat_tolerance_m: float = 0.005,
+                  gravity_m_per_s2: float = 9.81) -> list[CatchPoint]:
     """The moments of a logged flight at which the hand can catch, best first.
+
+    First the moments at which the axis is exactly horizontal
+    (`horizontal_moments`), from `ready_s` on and within `band_m` of
+    `height_m`; then the logged samples, ranked as follows.
 
     Candidates: the samples of the descent within `band_m` of `height_m`
     from `ready_s` on (the hand is in place). Order:
@@ -137,7 +143,57 @@ def catch_moments(t, object_state, obj: ObjectSpec, *, height_m: float,
     candidates.sort(key=lambda k: (
         tilted[k], rest[k] > flattest + flat_tolerance_m,
         -min(lowest[k_ready] - lowest[k], fall_m), abs(p[2, k] - height_m)))
-    return [_point(t, p, v, R_WO, k) for k in candidates]
+    exact = [point for point in horizontal_moments(
+        t, object_state, obj, gravity_m_per_s2=gravity_m_per_s2)
+        if point.t_s >= ready_s and abs(point.p_WO[2] - height_m) <= band_m]
+    return exact + [_point(t, p, v, R_WO, k) for k in candidates]
+
+
+def horizontal_moments(t, object_state, obj: ObjectSpec, *,
+                       gravity_m_per_s2: float = 9.81,
+                       iterations: int = 30) -> list[CatchPoint]:
+    """The moments of a logged flight's descent at which the object's
+    symmetry axis is exactly horizontal (y_O · z_W = 0), earliest first: the
+    crossing between two samples is found by propagating the free flight
+    from the sample before it (`free_flight.propagate`) and bisecting. So a
+    catch point is a property of the flight, not of the logging rate nor of
+    the time step: between a 1 ms and a 0.25 ms step its moment moves with
+    the flight itself (sample-picking would move it by a whole 4 ms
+    sample). Only stretches of free flight count (the centre of mass
+    accelerating at g, checked between the two samples)."""
+    t = np.asarray(t)
+    a = np.array([_rotation(object_state[:4, k])[2, 1]
+                  for k in range(len(t))])
+    g_W = np.array([0.0, 0.0, -gravity_m_per_s2])
+    inertia = obj.spatial_inertia()
+    p_OCm = inertia.get_com()
+    I_O = inertia.Shift(p_OCm).CalcRotationalInertia().CopyToFullMatrix3()
+    points = []
+    for k in range(len(t) - 1):
+        if a[k] == 0.0 or a[k] * a[k + 1] > 0.0 or object_state[12, k] >= 0:
+            continue
+        start = object_state[:, k]
+
+        def state_at(time):
+            return propagate(start, [t[k], time], p_OCm=p_OCm,
+                             I_CmCm_O=I_O, gravity_W=g_W)[:, -1]
+
+        end = state_at(t[k + 1])
+        if np.linalg.norm(end[4:7] - object_state[4:7, k + 1]) > 1e-4:
+            continue  # not free flight between the two samples
+        lo, hi = float(t[k]), float(t[k + 1])
+        for _ in range(iterations):
+            mid = 0.5 * (lo + hi)
+            if _rotation(state_at(mid)[:4])[2, 1] * a[k] > 0.0:
+                lo = mid
+            else:
+                hi = mid
+        x = state_at(0.5 * (lo + hi))
+        R = _rotation(x[:4])
+        points.append(CatchPoint(
+            t_s=0.5 * (lo + hi), p_WO=x[4:7].copy(), y_W=R[:, 1].copy(),
+            v_catch=float(x[12]), tilt=float(abs(R[2, 1])), R_WO=R))
+    return points
 
 
 def palm_frame(axis_W, max_tilt_rad: float, x_W=None) -> np.ndarray:

@@ -1,11 +1,12 @@
 """The catch state machine of the paper's Fig. 9, as a LeafSystem.
 
 Phases, in order:
-  SETTLE  the fingers close on the object lying in the palm;
-  THROW   the arm tracks the fixed throw trajectory; the fingers open at the
-          release time;
+  SETTLE  the object settles on the open palm;
+  THROW   the arm tracks the palm toss (station/palm_toss.py), the fingers
+          open: the object leaves the palm when it brakes;
   MOVE    the arm moves to the grasp position (or, when only watching, to a
-          park pose out of the flight's way);
+          park pose out of the flight's way); the fingers pre-shape to a
+          cage (catch.preshape_closure);
   WAIT    the hand waits, palm up, until an approach sensor (IR 4-13) sees
           the object closer than h_catch;
   LOWER   the fingers close at their maximum speed while the hand is lowered
@@ -16,7 +17,7 @@ Phases, in order:
 
 The arm is commanded in joint space: every phase is a segment from q_a to q_b
 with a quintic time law (zero end velocity and acceleration), except the
-throw, which follows a C2 cubic spline through the scenario's knots. The
+throw, which follows the toss's C2 cubic spline. The
 grasp and lowered joint angles are solved by inverse kinematics once, when
 the phase that needs them starts.
 
@@ -37,9 +38,9 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
-from pydrake.trajectories import PiecewisePolynomial
 
 from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station.palm_toss import TossDesign, toss_trajectory
 
 
 class Phase(enum.IntEnum):
@@ -75,7 +76,8 @@ def lowered_pose(X_WG: RigidTransform, h_down: float) -> RigidTransform:
 
 @dc.dataclass(frozen=True)
 class ThrowPerturbation:
-    """One throw's release noise: the fingers open `release_dt_s` late, and
+    """One throw's release noise: the palm brakes `release_dt_s` late (it
+    cruises at the launch speed meanwhile; early: the lift ends sooner), and
     each arm joint's reference gets a smooth velocity pulse that peaks at
     `joint_dv_rad_per_s` at the release, v(τ) = dv · exp(-((τ - τ_r)/w)²)
     with w = PULSE_WIDTH_S (its position and acceleration follow)."""
@@ -142,7 +144,7 @@ class CatchStateMachine(LeafSystem):
         self._approach_range = scenario.sensors.approach_range_m
         self._open = np.asarray(hand_open, float)
         self._closed = np.asarray(hand_closed, float)
-        self._hold = self._open + scenario.throw.hold_closure * (
+        self._preshape = self._open + scenario.catch.preshape_closure * (
             self._closed - self._open)
         self._speed = finger_speed_rad_per_s
         self._zeros6 = np.zeros(6)
@@ -151,15 +153,15 @@ class CatchStateMachine(LeafSystem):
         t = scenario.throw
         self._t_throw = t.settle_s
         self._noise = None if perturbation.is_zero() else perturbation
-        self._t_release = (t.settle_s + t.release_time_s
-                           + perturbation.release_dt_s)
-        self._t_throw_end = t.settle_s + t.knot_times_s[-1]
-        knots = np.array(t.knot_q_rad).T
-        self._spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(
-            t.knot_times_s, knots, np.zeros(6), np.zeros(6))
+        design = TossDesign.of(t, brake_delay_s=perturbation.release_dt_s)
+        self._tau_release = design.brake_start_s
+        self._throw_s = design.duration_s
+        self._t_release = t.settle_s + design.brake_start_s
+        self._t_throw_end = t.settle_s + design.duration_s
+        self._spline = toss_trajectory(design, ik)
         self._spline_v = self._spline.derivative(1)
         self._spline_a = self._spline.derivative(2)
-        self._q_start = knots[:, 0]
+        self._q_start = np.array(design.start_q)
 
         self._ir = self.DeclareVectorInputPort("ir_levels", 13)
         self._params = self.DeclareVectorInputPort("catch_parameters", 2)
@@ -169,7 +171,7 @@ class CatchStateMachine(LeafSystem):
 
         x0 = np.zeros(_SIZE)
         x0[_PHASE] = Phase.SETTLE
-        x0[_T_CLOSE] = 0.0  # the fingers close on the object from the start
+        x0[_T_CLOSE] = 0.0
         x0[_T_OPEN] = self._t_release
         x0[_QA] = x0[_QB] = self._q_start
         x0[_T] = 1.0
@@ -196,7 +198,7 @@ class CatchStateMachine(LeafSystem):
     def _arm_reference(self, x, t):
         """The arm's (q, v, v̇) reference at time t in state x."""
         if x[_PHASE] == _THROW:
-            tau = min(t - self._t_throw, self._throw.knot_times_s[-1])
+            tau = min(t - self._t_throw, self._throw_s)
             return self._throw_reference(tau)
         T = x[_T]
         tau = (t - x[_T0]) / T
@@ -212,20 +214,21 @@ class CatchStateMachine(LeafSystem):
         v = self._spline_v.value(tau).ravel()
         a = self._spline_a.value(tau).ravel()
         if self._noise is not None:
-            dq, dv, da = self._noise.pulse(tau, self._throw.release_time_s)
+            dq, dv, da = self._noise.pulse(tau, self._tau_release)
             q, v, a = q + dq, v + dv, a + da
         return q, v, a
 
     def _hand_reference(self, x, t):
-        """The fingers' (q, v) reference at time t in state x: they ramp at
-        their maximum speed toward the hold posture (from t_close while
-        settling and throwing), open (from the release), or closed (from
-        t_close once catching)."""
-        if x[_PHASE] <= _THROW and t < self._t_release:
-            return self._ramp(self._open, self._hold, t - x[_T_CLOSE])
+        """The fingers' (q, v) reference at time t in state x: open while
+        settling and throwing; ramping at their maximum speed to the
+        pre-shaped cage after the throw, and from there to closed from
+        t_close once catching."""
+        if x[_PHASE] <= _THROW:
+            return self._open, self._zeros_hand
         if x[_PHASE] < _LOWER:
-            return self._ramp(self._hold, self._open, t - self._t_release)
-        return self._ramp(self._open, self._closed, t - x[_T_CLOSE])
+            return self._ramp(self._open, self._preshape,
+                              t - self._t_throw_end)
+        return self._ramp(self._preshape, self._closed, t - x[_T_CLOSE])
 
     def _ramp(self, q_from, q_to, elapsed):
         delta = q_to - q_from
@@ -264,12 +267,12 @@ class CatchStateMachine(LeafSystem):
         if phase == Phase.SETTLE and t >= self._t_throw:
             x[_PHASE] = Phase.THROW
         elif phase == Phase.THROW and t >= self._t_throw_end:
-            q_end = self._throw_reference(self._throw.knot_times_s[-1])[0]
+            q_end = self._throw_reference(self._throw_s)[0]
             if self._park_q is not None:
                 q_target = self._park_q
             else:
                 X_WG = self._X_WG.Eval(context)
-                result = self._ik.solve(X_WG, self._catch.ik_seed_q_rad)
+                result = self._ik.solve(X_WG, q_end)
                 if not result.success:
                     return self._fail(x, f"grasp pose unreachable: "
                                       f"{result.reason()}")

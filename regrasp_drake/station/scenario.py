@@ -9,8 +9,7 @@ the fields it changes.
 Bounds (`validate`): each field's range is in validate; and for every field,
 whatever its section: every number finite; every arm joint angle (a list of
 6 named `*_q_rad`, or a list of such lists) within the PUMA 560's joint
-limits read from sdf/puma560.sdf (`arm_joint_limits`); the throw's knot
-times increasing from 0, at most 10 s. The file is read within the limits
+limits read from sdf/puma560.sdf (`arm_joint_limits`). The file is read within the limits
 of regrasp_drake/input_files.py (size, nesting, aliases, duplicate keys);
 `1e5` is a number.
 """
@@ -56,7 +55,8 @@ class ThrowNoise:
     """Release noise: each throw's perturbation is drawn from a generator
     seeded with (seed, the throw's number), so a run is reproducible from its
     seed; zero deviations reproduce the deterministic throw exactly."""
-    # Standard deviation of the moment the fingers open, [s].
+    # Standard deviation of the moment the palm starts to brake (the object
+    # separates just after), [s].
     release_time_std_s: float = 0.0
     # Standard deviation of each arm joint's velocity offset at the release,
     # [rad/s] (a smooth pulse on the throw's reference, see
@@ -67,27 +67,33 @@ class ThrowNoise:
 
 @dc.dataclass
 class ThrowConfig:
-    # Time the object is left to settle in the closed hand before the swing, [s].
+    """The palm toss (station/palm_toss.py): the object lies on the open
+    palm; the palm lifts it straight up while rolling about its fingertip
+    direction, then brakes harder than gravity so that the object leaves
+    with the palm's velocity and spin. No finger touches it."""
+    # Time the object is left to settle on the palm before the throw, [s].
     settle_s: float = 0.3
-    # Arm joint knots of the throw (rad), at times `knot_times_s` (s) counted
-    # from the end of the settling; a C2 cubic spline with zero end
-    # velocities joins them. The first knot is the arm's initial pose.
-    knot_times_s: list[float] = dc.field(
-        default_factory=lambda: [0.0, 0.2687, 0.3693, 0.564])
-    knot_q_rad: list[list[float]] = dc.field(
-        default_factory=lambda: [
-            [0.0, -0.7404, -0.9010, 0.0, 0.0706, 3.1416],
-            [0.0, -0.4542, -0.5116, 0.0, -0.8712, 3.1416],
-            [0.0, -0.0621, -0.7490, 0.0, -0.5681, 3.1416],
-            [0.0, 0.4295, -1.6445, 0.0, 0.4274, 3.1416],
-        ])
-    # Time, counted like the knots, at which the fingers open, [s].
-    release_time_s: float = 0.31
-    # Hand joint positions while the object is held for the throw, as a
-    # fraction of the closed posture, [-].
-    hold_closure: float = 0.5
+    # Arm joint angles at rest, palm up, before the throw, [rad]: the palm
+    # at (0.909, -0.15, 0.45) m, away from the wrist's singularity (q5 = 0).
+    start_q_rad: list[float] = dc.field(
+        default_factory=lambda: [0.0, -0.7372, -0.6510, 0.0, -0.1826, 3.1416])
+    # The palm's upward speed when it starts to brake, [m/s].
+    launch_speed_m_per_s: float = 3.0
+    # Duration of the lift from rest to the launch speed, [s].
+    lift_s: float = 0.22
+    # Duration of the brake from the launch speed to rest, [s]; its mean
+    # deceleration (launch_speed / brake_s) must exceed gravity's.
+    brake_s: float = 0.12
+    # The palm's roll rate about its fingertip direction at launch, [rad/s]:
+    # the object's spin in flight.
+    spin_rad_per_s: float = 5.0
+    # The roll keeps its rate this long after the palm starts to brake (the
+    # object has left by then), [s] ...
+    spin_hold_s: float = 0.04
+    # ... and then stops over this duration, [s].
+    spin_stop_s: float = 0.1
     # On a watching throw the arm parks out of the flight's way: the throw's
-    # last knot with joint 1 turned by this much, [rad].
+    # last pose with joint 1 turned by this much, [rad].
     park_joint1_offset_rad: float = 0.7
     # Release noise (default none: every throw identical).
     noise: ThrowNoise = dc.field(default_factory=ThrowNoise)
@@ -129,14 +135,10 @@ class CatchConfig:
     # centre of mass (an object landing flat does not tip off the palm), 0
     # under the grasp piece (the fingers close around it), [-].
     palm_across_com_fraction: float = 1.0
-    # Inverse kinematics of the grasp pose starts from these arm joint angles,
-    # [rad]: the throw's last knot, where the move to the grasp pose starts.
-    # Damped least squares converges to the solution nearest its seed, so the
-    # move is the shortest one (an elbow-up posture); from an elbow-down seed
-    # the shoulder and wrist travel up to 1.1 and 1.9 rad, saturate their
-    # servos within move_to_grasp_s and reach the grasp pose 0.1-0.2 s late.
-    ik_seed_q_rad: list[float] = dc.field(
-        default_factory=lambda: [0.0, 0.4295, -1.6445, 0.0, 0.4274, 3.1416])
+    # Inverse kinematics of the grasp pose starts from the throw's last pose,
+    # where the move to the grasp pose starts: damped least squares
+    # converges to the solution nearest its seed, so the move is the
+    # shortest one.
     # Duration of the arm's move from the end of the throw to the grasp
     # position, [s].
     move_to_grasp_s: float = 0.35
@@ -147,6 +149,9 @@ class CatchConfig:
     # The hand is at the grasp position when its wrist is this close, [m]
     # (paper Fig. 9: 0.001 m).
     grasp_tolerance_m: float = 0.001
+    # After the throw the fingers pre-shape to this fraction of the closed
+    # posture, a cage that funnels the falling object toward the palm, [-].
+    preshape_closure: float = 0.3
     # Speed at which the hand is lowered by |h_down|, [m/s].
     lower_speed_m_per_s: float = 1.0
     # Lowering stops when a palm infrared sensor reads below this, [level]
@@ -253,23 +258,21 @@ def validate(s: Scenario) -> Scenario:
             _in_range(f"arm.{name}[{i}]", g, 0.0, 1e6)
     t = s.throw
     _in_range("throw.settle_s", t.settle_s, 0.0, 5.0, " s")
-    if len(t.knot_times_s) < 2 or len(t.knot_times_s) != len(t.knot_q_rad):
-        raise field_error("throw.knot_times_s", t.knot_times_s,
-                          "at least 2 times, one per entry of throw.knot_q_rad")
-    if t.knot_times_s[0] != 0.0 or t.knot_times_s[-1] > 10.0 or not all(
-            b > a for a, b in zip(t.knot_times_s, t.knot_times_s[1:])):
-        raise field_error("throw.knot_times_s", t.knot_times_s,
-                          "increasing times starting at 0, at most 10 s")
-    for i, q in enumerate(t.knot_q_rad):
-        if len(q) != 6:
-            raise field_error(f"throw.knot_q_rad[{i}]", q, "6 joint angles")
-    _in_range("throw.release_time_s", t.release_time_s, 0.0,
-              t.knot_times_s[-1], " s")
-    _in_range("throw.hold_closure", t.hold_closure, 0.0, 1.0)
+    _in_range("throw.launch_speed_m_per_s", t.launch_speed_m_per_s, 0.5, 5.0,
+              " m/s")
+    _in_range("throw.lift_s", t.lift_s, 0.05, 1.0, " s")
+    _in_range("throw.brake_s", t.brake_s, 0.02,
+              t.launch_speed_m_per_s / (1.2 * s.gravity_m_per_s2)
+              if s.gravity_m_per_s2 > 0 else 1.0,
+              " s (the mean deceleration at least 1.2 g, so the object "
+              "leaves the palm)")
+    _in_range("throw.spin_rad_per_s", t.spin_rad_per_s, -15.0, 15.0, " rad/s")
+    _in_range("throw.spin_hold_s", t.spin_hold_s, 0.0, 0.2, " s")
+    _in_range("throw.spin_stop_s", t.spin_stop_s, 0.02, 1.0, " s")
     _in_range("throw.park_joint1_offset_rad", t.park_joint1_offset_rad,
               -math.pi, math.pi, " rad")
     _in_range("throw.noise.release_time_std_s", t.noise.release_time_std_s,
-              0.0, 0.05, " s")
+              0.0, 0.02, " s")
     _in_range("throw.noise.joint_velocity_std_rad_per_s",
               t.noise.joint_velocity_std_rad_per_s, 0.0, 1.0, " rad/s")
     if not isinstance(t.noise.seed, int) or t.noise.seed < 0:
@@ -291,12 +294,11 @@ def validate(s: Scenario) -> Scenario:
     _in_range("catch.palm_com_margin_m", k.palm_com_margin_m, 0.0, 0.05, " m")
     _in_range("catch.palm_across_com_fraction", k.palm_across_com_fraction,
               0.0, 1.0)
-    if len(k.ik_seed_q_rad) != 6:
-        raise field_error("catch.ik_seed_q_rad", k.ik_seed_q_rad, "6 joint angles")
     _in_range("catch.move_to_grasp_s", k.move_to_grasp_s, 0.05, 3.0, " s")
     _in_range("catch.max_move_torque_fraction", k.max_move_torque_fraction,
               0.05, 1.0)
     _in_range("catch.grasp_tolerance_m", k.grasp_tolerance_m, 1e-5, 0.05, " m")
+    _in_range("catch.preshape_closure", k.preshape_closure, 0.0, 0.8)
     _in_range("catch.lower_speed_m_per_s", k.lower_speed_m_per_s, 0.01, 5.0,
               " m/s")
     _in_range("catch.palm_stop_level", k.palm_stop_level, 0, n.levels)

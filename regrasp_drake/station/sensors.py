@@ -366,8 +366,9 @@ class InfraredSensors(LeafSystem):
 
 
 class TactileBumper(LeafSystem):
-    """A tactile bumper: reads 1.0 while the bumper geometry touches any target
-    geometry (a point pair or a hydroelastic contact surface), else 0.0.
+    """A tactile bumper: reads 1.0 while any of the bumper's geometries (one
+    id or a list: the pads it covers) touches any target geometry (a point
+    pair or a hydroelastic contact surface), else 0.0.
 
     Input port `contact_results`: the plant's contact results output port.
     Output port `bumper`: a 1-vector, sampled every `period_s` seconds and at
@@ -377,7 +378,7 @@ class TactileBumper(LeafSystem):
     def __init__(
         self,
         plant: MultibodyPlant,
-        bumper_geometry_id: GeometryId,
+        bumper_geometry_ids: GeometryId | list[GeometryId],
         target_geometry_ids: list[GeometryId],
         period_s: float,
     ):
@@ -388,7 +389,9 @@ class TactileBumper(LeafSystem):
             )
         if not (period_s > 0 and math.isfinite(period_s)):
             raise field_error("period_s", period_s, "a finite period > 0 (s)")
-        self._bumper_id = bumper_geometry_id
+        if isinstance(bumper_geometry_ids, GeometryId):
+            bumper_geometry_ids = [bumper_geometry_ids]
+        self._bumper_ids = frozenset(bumper_geometry_ids)
         self._target_ids = frozenset(target_geometry_ids)
         self._contact_port = self.DeclareAbstractInputPort(
             "contact_results", AbstractValue.Make(ContactResults())
@@ -417,8 +420,8 @@ class TactileBumper(LeafSystem):
             )
         ]
         for id_A, id_B in pairs:
-            if (id_A == self._bumper_id and id_B in self._target_ids) or (
-                id_B == self._bumper_id and id_A in self._target_ids
+            if (id_A in self._bumper_ids and id_B in self._target_ids) or (
+                id_B in self._bumper_ids and id_A in self._target_ids
             ):
                 return True
         return False

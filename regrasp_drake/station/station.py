@@ -40,6 +40,7 @@ from regrasp_drake.station.catch_state_machine import (
     CatchStateMachine,
     ThrowPerturbation,
 )
+from regrasp_drake.station import palm_toss
 from regrasp_drake.station.grasp_monitor import GraspMonitor
 from regrasp_drake.station.scenario import Scenario
 from regrasp_drake.station.sensors import InfraredSensors, TactileBumper
@@ -144,7 +145,7 @@ def build_station(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
     builder.Connect(scene_graph.get_query_output_port(),
                     ir.GetInputPort("query_object"))
     bumper = builder.AddNamedSystem("bumper", TactileBumper(
-        plant, _bumper_geometry(plant, scene_graph, instances.hand),
+        plant, _bumper_geometries(plant, scene_graph, instances.hand),
         object_geometries, s.period_s))
     builder.Connect(plant.get_contact_results_output_port(),
                     bumper.GetInputPort("contact_results"))
@@ -167,7 +168,7 @@ def build_station(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
     watching = X_WG is None
     q_park = None
     if watching:
-        q_park = np.array(scenario.throw.knot_q_rad[-1], float)
+        q_park = palm_toss.end_q(scenario.throw, ik)
         q_park[0] += scenario.throw.park_joint1_offset_rad
     machine = builder.AddNamedSystem("catch_state_machine", CatchStateMachine(
         scenario, ik, robot.HAND_OPEN, robot.HAND_CLOSED,
@@ -280,13 +281,18 @@ def _set_object_contact(plant, scene_graph, object_body, scenario):
     return ids
 
 
-def _bumper_geometry(plant, scene_graph, hand):
+def _bumper_geometries(plant, scene_graph, hand):
+    """The palm's pads under the tactile bumper (collision `bumper_*`)."""
     inspector = scene_graph.model_inspector()
     palm = plant.GetBodyByName("palm", hand)
-    for geometry_id in plant.GetCollisionGeometriesForBody(palm):
-        if inspector.GetName(geometry_id).endswith("bumper"):
-            return geometry_id
-    raise RuntimeError("the hand model has no collision geometry 'bumper'")
+    ids = [geometry_id
+           for geometry_id in plant.GetCollisionGeometriesForBody(palm)
+           if inspector.GetName(geometry_id).split("::")[-1]
+           .startswith("bumper_")]
+    if not ids:
+        raise RuntimeError("the hand model has no collision geometry "
+                           "'bumper_*'")
+    return ids
 
 
 def _initial_object_pose(plant, instances, obj, scenario) -> RigidTransform:
@@ -295,7 +301,7 @@ def _initial_object_pose(plant, instances, obj, scenario) -> RigidTransform:
     over the palm's centre (so that a lopsided object does not tip off)."""
     context = plant.CreateDefaultContext()
     plant.SetPositions(context, instances.arm,
-                       np.array(scenario.throw.knot_q_rad[0], float))
+                       np.array(scenario.throw.start_q_rad, float))
     plant.SetPositions(context, instances.hand, robot.HAND_OPEN)
     X_WP = plant.GetFrameByName("palm_surface", instances.hand).CalcPoseInWorld(
         context)
@@ -328,7 +334,7 @@ def initialize(station: Station, scenario: Scenario) -> Simulator:
     plant = station.plant
     plant_context = plant.GetMyMutableContextFromRoot(context)
     plant.SetPositions(plant_context, station.arm,
-                       np.array(scenario.throw.knot_q_rad[0], float))
+                       np.array(scenario.throw.start_q_rad, float))
     plant.SetPositions(plant_context, station.hand, robot.HAND_OPEN)
     plant.SetFreeBodyPose(plant_context, station.object_body,
                           station.X_WO_initial)

@@ -104,6 +104,8 @@ SIZE_RANGE_M = (0.001, 0.3)
 MAX_CENTER_M = 0.3
 MAX_PIECES = 16
 MAX_GEOMETRIES = 100
+# A box's collision box lies this far inside its faces (Piece.collision_shapes).
+BOX_INSET_M = 0.0005
 MAX_OBJECTS = 1000
 DENSITY_RANGE = (MIN_BASE_DENSITY, MAX_BALLAST_DENSITY)  # kg/m³
 MASS_RANGE_KG = (0.001, 2.5)
@@ -230,6 +232,29 @@ class Piece:
             return Capsule(self.radius, self.length)
         return Cylinder(self.radius, self.length)
 
+    def collision_shapes(self) -> list[tuple[RigidTransform, Shape]]:
+        """The piece's collision geometry, (X_OG, shape) pairs. Curved
+        pieces are their own shape. A box is Drake's inset box with corner
+        spheres: the box shrunk by BOX_INSET_M on every side, and in each of
+        its 8 corners a sphere of radius ρ = min(edge)/4 (at most 6 mm)
+        touching the full box's three faces there. A corner or an edge
+        meeting a surface then touches it at one smooth point instead of one
+        that jumps between the box's corners from step to step (Drake's
+        point contact between flat faces; the release would not converge in
+        the time step, issue 26). The visual shape and the inertia are the
+        exact box."""
+        if self.shape != "box":
+            return [(self.X_OG(), self.drake_shape())]
+        rho = min(float(np.min(self.size)) / 4.0, 0.006)
+        half = self.size / 2.0
+        shapes = [(RigidTransform(self.center),
+                   Box(*(self.size - 2.0 * BOX_INSET_M)))]
+        for signs in itertools.product((-1.0, 1.0), repeat=3):
+            signs = np.array(signs)
+            shapes.append((RigidTransform(
+                self.center + signs * (half - rho)), Sphere(rho)))
+        return shapes
+
     def X_OG(self) -> RigidTransform:
         """Pose of the Drake shape's frame G in O (Drake's cylinders and
         capsules lie along their frame's z)."""
@@ -355,15 +380,18 @@ def add_object(
 ) -> RigidBody:
     """Adds `spec` to `plant` (before Finalize) as a new model instance
     `model_name` holding one free rigid body (named after the object) whose
-    body frame is the object frame O. Each piece i gets a collision geometry
-    "collision_i" with `friction` and a visual "visual_i". Returns the body."""
+    body frame is the object frame O. Each piece i gets collision geometries
+    "collision_i_k" (`Piece.collision_shapes`) with `friction` and a visual
+    "visual_i". Returns the body."""
     model = plant.AddModelInstance(model_name)
     body = plant.AddRigidBody(spec.name, model, spec.spatial_inertia())
     for i, piece in enumerate(spec.pieces):
         properties = ProximityProperties()
         AddContactMaterial(friction=friction, properties=properties)
+        for k, (X_OG, shape) in enumerate(piece.collision_shapes()):
+            plant.RegisterCollisionGeometry(
+                body, X_OG, shape, f"collision_{i}_{k}", properties)
         X_OG, shape = piece.X_OG(), piece.drake_shape()
-        plant.RegisterCollisionGeometry(body, X_OG, shape, f"collision_{i}", properties)
         color = _GRASP_COLOR if piece.grasp else _PIECE_COLOR
         plant.RegisterVisualGeometry(body, X_OG, shape, f"visual_{i}", color)
     return body

@@ -1,0 +1,186 @@
+"""The throw: a palm toss, the same motion for every object.
+
+The object lies on the open palm (no finger touches it). The palm, facing up,
+is lifted straight up and rolled about its own x axis (the fingertip
+direction) at the same time; then it brakes harder than gravity, so every
+contact unloads at once and the object leaves with the palm's velocity and
+angular velocity of that instant: a well-posed release (the contact force
+falls continuously to zero; there is no stick-slip switch for the time step
+to resolve). The roll gives the object a designed spin about the palm's x,
+so its symmetry axis (along the palm's y) turns end over end in flight and
+is horizontal again half a turn later: the catch is another grasp.
+
+Palm motion, t from the start of the throw (velocities as quintic
+smoothsteps s(τ) = 10τ³ - 15τ⁴ + 6τ⁵, so accelerations are continuous and
+start and end at zero; the roll angle φ during the lift follows the quintic
+p(τ) = -4τ³ + 7τ⁴ - 3τ⁵, with p = p' = p'' = 0 at τ = 0 and p = 0, p' = 1,
+p'' = 0 at τ = 1: the palm first rolls back by at most 0.2 Ω T_l (10° for
+the shipped toss) and is level again, rolling at Ω, when it starts to brake,
+so the object is pressed straight onto it and every contact unloads at once):
+  lift   0 ≤ t < T_l:   v_z = V s(t/T_l),       φ = Ω T_l p(t/T_l)
+  cruise T_l ≤ t < T_l + d: v_z = V, ω_x = Ω    (d: a late release, noise)
+  brake  then, over T_b: v_z = V (1 - s(·/T_b));
+         the roll keeps ω_x = Ω for T_h more, then stops over T_s:
+         ω_x = Ω (1 - s(·/T_s)).
+The peak deceleration, 1.875 V/T_b, exceeds g by far: the object separates
+early in the brake, where v_z ≈ V, at the constant roll rate Ω. (Were the
+roll to slow while the object still pressed on the palm, friction at its
+base would tip it forward like a block on a braking cart: measured, the
+spin then grew from 4.0 to 5.5 rad/s, and differed by 0.4 rad/s between a
+1 ms and a 0.25 ms step.)
+
+The arm follows the palm's pose by inverse kinematics every `IK_PERIOD_S`,
+joined by a C2 cubic spline (`toss_trajectory`).
+"""
+
+import dataclasses as dc
+import functools
+
+import numpy as np
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.trajectories import PiecewisePolynomial
+
+# Inverse kinematics samples of the palm's motion, [s].
+IK_PERIOD_S = 0.005
+# The roll's axis runs along the palm's x this high above the palm's surface,
+# [m]: about where a lying object's centre of mass is (1.5-4 cm), so the roll
+# gives it little sideways velocity.
+ROLL_AXIS_HEIGHT_M = 0.03
+
+
+def _smoothstep(tau):
+    """s(τ) and its integral S(τ) = ∫₀^τ s, τ clipped to [0, 1]."""
+    tau = min(max(tau, 0.0), 1.0)
+    s = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau**2)
+    integral = tau**4 * (2.5 - 3.0 * tau + tau**2)
+    return s, integral
+
+
+def _roll_profile(tau):
+    """p(τ) and p'(τ) of the lift's roll (module docstring)."""
+    tau = min(max(tau, 0.0), 1.0)
+    return (tau**3 * (-4.0 + 7.0 * tau - 3.0 * tau**2),
+            tau**2 * (-12.0 + 28.0 * tau - 15.0 * tau**2))
+
+
+@dc.dataclass(frozen=True)
+class TossDesign:
+    """The toss's constants (see the module docstring); hashable so that a
+    trajectory is computed once per design."""
+    start_q: tuple          # arm joint angles at rest before the throw, [rad]
+    launch_speed: float     # V, [m/s]
+    lift_s: float           # T_l, [s]
+    brake_s: float          # T_b, [s]
+    spin: float             # Ω, [rad/s] about the palm's x
+    spin_stop_s: float      # T_s, [s]
+    spin_hold_s: float      # T_h, [s]
+    brake_delay_s: float = 0.0  # d, [s]
+
+    @staticmethod
+    def of(throw, brake_delay_s: float = 0.0) -> "TossDesign":
+        """The design of a scenario's ThrowConfig."""
+        return TossDesign(
+            start_q=tuple(float(q) for q in throw.start_q_rad),
+            launch_speed=float(throw.launch_speed_m_per_s),
+            lift_s=float(throw.lift_s), brake_s=float(throw.brake_s),
+            spin=float(throw.spin_rad_per_s),
+            spin_stop_s=float(throw.spin_stop_s),
+            spin_hold_s=float(throw.spin_hold_s),
+            brake_delay_s=float(max(brake_delay_s, -throw.lift_s / 2)))
+
+    @property
+    def brake_start_s(self) -> float:
+        return self.lift_s + self.brake_delay_s
+
+    @property
+    def duration_s(self) -> float:
+        """The throw's length: the palm and its roll are at rest after."""
+        return self.brake_start_s + max(self.brake_s,
+                                        self.spin_hold_s + self.spin_stop_s)
+
+    def palm_motion(self, t: float) -> tuple[float, float, float, float]:
+        """(z, v_z, φ, ω_x) of the palm at throw time t: its rise above the
+        start, [m], vertical speed, [m/s], roll about its x, [rad], and roll
+        rate, [rad/s]. A negative delay shortens the lift, scaling its
+        velocities (the same profile, ended early)."""
+        T_l, V, W = self.lift_s, self.launch_speed, self.spin
+        t0 = self.brake_start_s
+        if t < min(T_l, t0):
+            s, S = _smoothstep(t / T_l)
+            p, dp = _roll_profile(t / T_l)
+            return V * T_l * S, V * s, W * T_l * p, W * dp
+        # At the end of the lift (or of a shortened one).
+        s_l, S_l = _smoothstep(min(T_l, t0) / T_l)
+        p_l, dp_l = _roll_profile(min(T_l, t0) / T_l)
+        z0, phi0 = V * T_l * S_l, W * T_l * p_l
+        v0, w0 = V * s_l, W * dp_l
+        if t < t0:  # cruising
+            return z0 + v0 * (t - T_l), v0, phi0 + w0 * (t - T_l), w0
+        z0 += v0 * max(0.0, t0 - T_l)
+        phi0 += w0 * max(0.0, t0 - T_l)
+        u = t - t0
+        s_b, S_b = _smoothstep(u / self.brake_s)
+        u_r = max(0.0, u - self.spin_hold_s)
+        s_s, S_s = _smoothstep(u_r / self.spin_stop_s)
+        u_b = min(u, self.brake_s)
+        u_s = min(u, self.spin_hold_s) + min(u_r, self.spin_stop_s)
+        z = z0 + v0 * (u_b - self.brake_s * S_b)
+        phi = phi0 + w0 * (u_s - self.spin_stop_s * S_s)
+        return z, v0 * (1.0 - s_b), phi, w0 * (1.0 - s_s)
+
+
+def palm_pose_at(design: TossDesign, X_WP0: RigidTransform,
+                 t: float) -> RigidTransform:
+    """The palm's pose at throw time t, from its start pose X_WP0."""
+    z, _, phi, _ = design.palm_motion(t)
+    R_roll = RotationMatrix.MakeXRotation(phi)
+    p_PA = np.array([0.0, 0.0, ROLL_AXIS_HEIGHT_M])  # a point of the axis
+    # The palm turns by R_roll about the axis through A (in P0's frame).
+    p_P0P = p_PA - R_roll @ p_PA
+    return RigidTransform(
+        X_WP0.rotation() @ R_roll,
+        X_WP0.translation() + X_WP0.rotation() @ p_P0P + [0.0, 0.0, z])
+
+
+@functools.lru_cache(maxsize=16)
+def _trajectory(design: TossDesign, ik) -> PiecewisePolynomial:
+    X_WP0 = ik.palm_pose(np.array(design.start_q))
+    n = int(np.ceil(design.duration_s / IK_PERIOD_S))
+    times = np.linspace(0.0, design.duration_s, n + 1)
+    q = np.array(design.start_q)
+    knots = [q]
+    for t in times[1:]:
+        result = ik.solve(palm_pose_at(design, X_WP0, float(t)), q)
+        if not result.success:
+            raise ValueError(
+                f"throw: the palm's pose at t = {t:.3f} s of the toss is "
+                f"unreachable ({result.reason()}); expected a toss the arm "
+                "can follow (lower throw.launch_speed_m_per_s or "
+                "throw.spin_rad_per_s, or move throw.start_q_rad)")
+        q = result.q
+        knots.append(q)
+    return PiecewisePolynomial.CubicWithContinuousSecondDerivatives(
+        times, np.array(knots).T, np.zeros(6), np.zeros(6))
+
+
+def toss_trajectory(design: TossDesign, ik) -> PiecewisePolynomial:
+    """The arm's joint trajectory of the toss (6 rows), t ∈ [0, duration]:
+    computed once per design and solver."""
+    return _trajectory(design, ik)
+
+
+def throw_end_s(throw) -> float:
+    """The throw's length, counted from the end of the settling, [s]."""
+    return TossDesign.of(throw).duration_s
+
+
+def launch_s(throw) -> float:
+    """When the palm starts to brake (the object separates just after),
+    counted from the end of the settling, [s]."""
+    return TossDesign.of(throw).brake_start_s
+
+
+def end_q(throw, ik) -> np.ndarray:
+    """The arm's joint angles at the end of the throw, [rad]."""
+    design = TossDesign.of(throw)
+    return toss_trajectory(design, ik).value(design.duration_s).ravel()
