@@ -24,7 +24,7 @@ from regrasp_drake.planning.catch_plan import (
 )
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.episode import EpisodeResult, run_episode
-from regrasp_drake.station.palm_toss import end_q, launch_s, throw_end_s
+from regrasp_drake.station.palm_toss import end_state, launch_s, throw_end_s
 from regrasp_drake.station.scenario import H_CATCH_RANGE, Scenario, load_scenario
 from regrasp_drake.world.objects import ObjectSpec, resolve_object
 
@@ -118,7 +118,7 @@ def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     c = scenario.catch
     t_ready = (scenario.throw.settle_s + throw_end_s(scenario.throw)
                + c.move_to_grasp_s)
-    q_start = end_q(scenario.throw, ik)
+    q_start, v_start, a_start = end_state(scenario.throw, ik)
     # A flight that ends before the release (a watching throw stopped with
     # the object near the ground) says why there is no catch point.
     t_release = scenario.throw.settle_s + launch_s(scenario.throw)
@@ -153,7 +153,8 @@ def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
             if not result.success:
                 reasons.append(f"{where}: {result.reason()}")
                 continue
-            ratio = move_torque_ratio(ik, q_start, result.q, c.move_to_grasp_s)
+            ratio = move_torque_ratio(ik, q_start, result.q, c.move_to_grasp_s,
+                                      v_start=v_start, a_start=a_start)
             if ratio > c.max_move_torque_fraction:
                 reasons.append(
                     f"{where}: the move there needs {ratio:.2f} of a servo's "

@@ -26,8 +26,8 @@ from pydrake.multibody.tree import MultibodyForces
 from regrasp_drake.planning.free_flight import propagate
 from regrasp_drake.planning.ik import ArmIk, palm_up_pose
 
-# The state machine's time law of every arm move.
-from regrasp_drake.station.catch_state_machine import _quintic
+# The state machine's time law of the move to the grasp pose.
+from regrasp_drake.station.catch_state_machine import quintic_from
 from regrasp_drake.world.objects import ObjectSpec
 from regrasp_drake.world.robot import ARM_EFFORT_LIMITS
 
@@ -270,24 +270,33 @@ def palm_poses_for(catch_point: CatchPoint, grasp_radius_m: float,
 
 
 def move_torque_ratio(ik: ArmIk, q_start, q_end, duration_s: float,
-                      samples: int = 41) -> float:
+                      samples: int = 41, v_start=None,
+                      a_start=None) -> float:
     """The largest |τ_i| / effort limit_i the arm needs to follow the state
-    machine's move from q_start to q_end in `duration_s` (a quintic in joint
-    space, at rest at both ends), by inverse dynamics of the arm and hand
-    (the object is in flight). Above 1 the servos saturate: the arm lags,
-    overshoots and reaches the grasp position late."""
+    machine's move from q_start (with velocity v_start and acceleration
+    a_start, default at rest: the throw hands over a moving arm) to q_end at
+    rest in `duration_s` (`catch_state_machine.quintic_from`), by inverse
+    dynamics of the arm and hand (the object is in flight), gravity
+    included. Above 1 the servos saturate: the arm lags, overshoots and
+    reaches the grasp position late."""
     plant = ik.plant
     context = plant.CreateDefaultContext()
     forces = MultibodyForces(plant)
     q_start = np.asarray(q_start, float)
-    dq = np.asarray(q_end, float) - q_start
+    zeros = np.zeros_like(q_start)
+    v0 = zeros if v_start is None else np.asarray(v_start, float)
+    a0 = zeros if a_start is None else np.asarray(a_start, float)
+    q_end = np.asarray(q_end, float)
     worst = 0.0
     for tau in np.linspace(0.0, 1.0, samples):
-        s, ds, dds = _quintic(tau)
-        plant.SetPositions(context, q_start + s * dq)
-        plant.SetVelocities(context, ds / duration_s * dq)
-        torque = plant.CalcInverseDynamics(
-            context, dds / duration_s**2 * dq, forces)
+        q, v, a = quintic_from(min(tau, 1.0 - 1e-12), duration_s, q_start,
+                               v0, a0, q_end)
+        plant.SetPositions(context, q)
+        plant.SetVelocities(context, v)
+        # Gravity too: CalcInverseDynamics counts only the forces given.
+        forces.SetZero()
+        plant.CalcForceElementsContribution(context, forces)
+        torque = plant.CalcInverseDynamics(context, a, forces)
         worst = max(worst, float(np.max(np.abs(torque) / ARM_EFFORT_LIMITS)))
     return worst
 

@@ -4,9 +4,12 @@ Phases, in order:
   SETTLE  the object settles on the open palm;
   THROW   the arm tracks the palm toss (station/palm_toss.py), the fingers
           open: the object leaves the palm when it brakes;
-  MOVE    the arm moves to the grasp position (or, when only watching, to a
-          park pose out of the flight's way); the fingers pre-shape to a
-          cage (catch.preshape_closure);
+  MOVE    once the object has left the palm, the arm moves to the grasp
+          position (or, when only watching, to a park pose out of the
+          flight's way), from the toss's moving state (a quintic from its
+          position, velocity and acceleration to rest): the brake and the
+          roll's stop blend into the move; the fingers pre-shape to a cage
+          (catch.preshape_closure);
   WAIT    the hand waits, palm up, until an approach sensor (IR 4-13) sees
           the object closer than h_catch;
   LOWER   the fingers close at their maximum speed while the hand is lowered
@@ -56,14 +59,18 @@ class Phase(enum.IntEnum):
 
 # Plain numbers of the phases the per-step references test (faster than
 # the enum's attribute lookup).
-_THROW, _LOWER = int(Phase.THROW), int(Phase.LOWER)
+_THROW, _MOVE, _LOWER = int(Phase.THROW), int(Phase.MOVE), int(Phase.LOWER)
 
 # Layout of the discrete state vector.
 _PHASE, _T0, _T, _T_CLOSE, _T_OPEN, _H_DOWN, _TICK = range(7)
 _QA = slice(7, 13)
 _QB = slice(13, 19)
 _QGRASP = slice(19, 25)
-_SIZE = 25
+# A segment's start velocity and acceleration (zero but for the move that
+# takes over from the throw while the arm still moves).
+_V0 = slice(25, 31)
+_A0 = slice(31, 37)
+_SIZE = 37
 
 
 def lowered_pose(X_WG: RigidTransform, h_down: float) -> RigidTransform:
@@ -113,6 +120,26 @@ class ThrowPerturbation:
         return phi * dv, g * dv, (-2.0 * u / w * g) * dv
 
 
+def quintic_from(tau, T, q0, v0, a0, q1):
+    """The quintic from (q0, v0, a0) at τ = 0 to q1 at rest (zero velocity
+    and acceleration) at τ = 1, τ = t / T: its (q, v, v̇) at τ (held at q1
+    after τ = 1)."""
+    if tau >= 1.0:
+        return q1, np.zeros_like(q1), np.zeros_like(q1)
+    tau = max(tau, 0.0)
+    c1, c2 = v0 * T, 0.5 * a0 * T * T
+    A = q1 - q0 - c1 - c2
+    B = -c1 - 2.0 * c2
+    C = -2.0 * c2
+    c3 = 10.0 * A - 4.0 * B + 0.5 * C
+    c4 = -15.0 * A + 7.0 * B - C
+    c5 = 6.0 * A - 3.0 * B + 0.5 * C
+    q = q0 + tau * (c1 + tau * (c2 + tau * (c3 + tau * (c4 + tau * c5))))
+    dq = c1 + tau * (2 * c2 + tau * (3 * c3 + tau * (4 * c4 + tau * 5 * c5)))
+    ddq = 2 * c2 + tau * (6 * c3 + tau * (12 * c4 + tau * 20 * c5))
+    return q, dq / T, ddq / (T * T)
+
+
 def _quintic(tau):
     """Time law s(τ), s'(τ), s''(τ) with zero end velocity and acceleration."""
     tau = min(max(tau, 0.0), 1.0)
@@ -155,9 +182,9 @@ class CatchStateMachine(LeafSystem):
         self._noise = None if perturbation.is_zero() else perturbation
         design = TossDesign.of(t, brake_delay_s=perturbation.release_dt_s)
         self._tau_release = design.brake_start_s
-        self._throw_s = design.duration_s
+        self._throw_s = design.handoff_s
         self._t_release = t.settle_s + design.brake_start_s
-        self._t_throw_end = t.settle_s + design.duration_s
+        self._t_throw_end = t.settle_s + design.handoff_s
         self._spline = toss_trajectory(design, ik)
         self._spline_v = self._spline.derivative(1)
         self._spline_a = self._spline.derivative(2)
@@ -204,6 +231,8 @@ class CatchStateMachine(LeafSystem):
         tau = (t - x[_T0]) / T
         if tau >= 1.0:  # the segment is done: rest at its end
             return x[_QB], self._zeros6, self._zeros6
+        if x[_PHASE] == _MOVE:  # from the throw's moving state
+            return quintic_from(tau, T, x[_QA], x[_V0], x[_A0], x[_QB])
         s, ds, dds = _quintic(tau)
         dq = x[_QB] - x[_QA]
         return x[_QA] + s * dq, ds / T * dq, dds / T**2 * dq
@@ -267,7 +296,7 @@ class CatchStateMachine(LeafSystem):
         if phase == Phase.SETTLE and t >= self._t_throw:
             x[_PHASE] = Phase.THROW
         elif phase == Phase.THROW and t >= self._t_throw_end:
-            q_end = self._throw_reference(self._throw_s)[0]
+            q_end, v_end, a_end = self._throw_reference(self._throw_s)
             if self._park_q is not None:
                 q_target = self._park_q
             else:
@@ -280,6 +309,7 @@ class CatchStateMachine(LeafSystem):
             x[_QGRASP] = q_target
             self._start_segment(x, t, q_end, q_target,
                                 self._catch.move_to_grasp_s, Phase.MOVE)
+            x[_V0], x[_A0] = v_end, a_end
         elif (phase == Phase.MOVE and segment_done
               and self._park_q is None and self._at_grasp(context, x)):
             x[_PHASE] = Phase.WAIT
@@ -324,6 +354,7 @@ class CatchStateMachine(LeafSystem):
         x[_T] = duration
         x[_QA] = q_a
         x[_QB] = q_b
+        x[_V0] = x[_A0] = 0.0
 
     def _at_grasp(self, context, x):
         q = self._arm_state.Eval(context)[:6]

@@ -19,15 +19,19 @@ the shipped toss) and is level again, rolling at Ω, when it starts to brake,
 so the object is pressed straight onto it and every contact unloads at once):
   lift   0 ≤ t < T_l:   v_z = V s(t/T_l),       φ = Ω T_l p(t/T_l)
   cruise T_l ≤ t < T_l + d: v_z = V, ω_x = Ω    (d: a late release, noise)
-  brake  then, over T_b: v_z = V (1 - s(·/T_b));
+  brake  then the deceleration rises to A over T_r (a smoothstep), stays
+         there, and falls back to 0 over T_r as v_z reaches 0;
          the roll keeps ω_x = Ω for T_h more, then stops over T_s:
          ω_x = Ω (1 - s(·/T_s)).
-The peak deceleration, 1.875 V/T_b, exceeds g by far: the object separates
-early in the brake, where v_z ≈ V, at the constant roll rate Ω. (Were the
-roll to slow while the object still pressed on the palm, friction at its
-base would tip it forward like a block on a braking cart: measured, the
-spin then grew from 4.0 to 5.5 rad/s, and differed by 0.4 rad/s between a
-1 ms and a 0.25 ms step.)
+A exceeds g (1.6 g shipped): the object separates as the deceleration
+passes g, a few ms into the brake, where v_z ≈ V, at the constant roll rate
+Ω. The quick rise matters: with a slow one (a smoothstep brake over 0.2 s,
+the object leaving 45 ms in), the unloading object rocks on its supports and
+leaves at a phase of that rocking that depends on the time step (table1-row4:
+5.87 against 5.59 rad/s at 1 and 0.25 ms). And were the roll to slow while
+the object still pressed on the palm, friction at its base would tip it
+forward like a block on a braking cart (the spin grew from 4.0 to 5.5
+rad/s).
 
 The arm follows the palm's pose by inverse kinematics every `IK_PERIOD_S`,
 joined by a C2 cubic spline (`toss_trajectory`).
@@ -56,6 +60,34 @@ def _smoothstep(tau):
     return s, integral
 
 
+def _brake(u, v0, a, T_r):
+    """(Δz, v) a time u into the brake from speed v0: the deceleration
+    rises to a over T_r as a smoothstep, stays at a, and falls back over
+    T_r, reaching 0 with the speed (module docstring)."""
+    T_c = max(v0 / a - T_r, 0.0)  # at the full deceleration
+    a = v0 / (T_r + T_c)  # (lower, when v0 is too small to reach a)
+
+    def integral(tau):  # ∫₀^τ S, S the smoothstep's integral
+        tau = min(max(tau, 0.0), 1.0)
+        return tau**5 * (0.5 - 0.5 * tau + tau**2 / 7.0)
+
+    if u < T_r:
+        tau = u / T_r
+        return (v0 * u - a * T_r**2 * integral(tau),
+                v0 - a * T_r * _smoothstep(tau)[1])
+    v1 = v0 - a * T_r / 2.0
+    z1 = v0 * T_r - a * T_r**2 / 7.0
+    w = min(u - T_r, T_c)
+    if u < T_r + T_c:
+        return z1 + v1 * w - a * w * w / 2.0, v1 - a * w
+    v2 = v1 - a * T_c
+    z2 = z1 + v1 * T_c - a * T_c**2 / 2.0
+    tau = min((u - T_r - T_c) / T_r, 1.0)
+    S = _smoothstep(tau)[1]
+    return (z2 + v2 * T_r * tau - a * T_r**2 * (tau**2 / 2.0 - integral(tau)),
+            max(v2 - a * T_r * (tau - S), 0.0) if tau < 1.0 else 0.0)
+
+
 def _roll_profile(tau):
     """p(τ) and p'(τ) of the lift's roll (module docstring)."""
     tau = min(max(tau, 0.0), 1.0)
@@ -70,7 +102,8 @@ class TossDesign:
     start_q: tuple          # arm joint angles at rest before the throw, [rad]
     launch_speed: float     # V, [m/s]
     lift_s: float           # T_l, [s]
-    brake_s: float          # T_b, [s]
+    brake_deceleration: float  # A, [m/s²]
+    brake_ramp_s: float     # T_r, [s]
     spin: float             # Ω, [rad/s] about the palm's x
     spin_stop_s: float      # T_s, [s]
     spin_hold_s: float      # T_h, [s]
@@ -82,7 +115,9 @@ class TossDesign:
         return TossDesign(
             start_q=tuple(float(q) for q in throw.start_q_rad),
             launch_speed=float(throw.launch_speed_m_per_s),
-            lift_s=float(throw.lift_s), brake_s=float(throw.brake_s),
+            lift_s=float(throw.lift_s),
+            brake_deceleration=float(throw.brake_deceleration_m_per_s2),
+            brake_ramp_s=float(throw.brake_ramp_s),
             spin=float(throw.spin_rad_per_s),
             spin_stop_s=float(throw.spin_stop_s),
             spin_hold_s=float(throw.spin_hold_s),
@@ -97,6 +132,18 @@ class TossDesign:
         """The throw's length: the palm and its roll are at rest after."""
         return self.brake_start_s + max(self.brake_s,
                                         self.spin_hold_s + self.spin_stop_s)
+
+    @property
+    def handoff_s(self) -> float:
+        """When the catch's move takes over from the toss, the object long
+        gone (it leaves as the deceleration passes g): the end of the roll's
+        hold, [s]."""
+        return self.brake_start_s + self.spin_hold_s
+
+    @property
+    def brake_s(self) -> float:
+        """The brake's length, from the launch speed to rest, [s]."""
+        return self.brake_ramp_s + self.launch_speed / self.brake_deceleration
 
     def palm_motion(self, t: float) -> tuple[float, float, float, float]:
         """(z, v_z, φ, ω_x) of the palm at throw time t: its rise above the
@@ -119,14 +166,12 @@ class TossDesign:
         z0 += v0 * max(0.0, t0 - T_l)
         phi0 += w0 * max(0.0, t0 - T_l)
         u = t - t0
-        s_b, S_b = _smoothstep(u / self.brake_s)
+        dz, v = _brake(u, v0, self.brake_deceleration, self.brake_ramp_s)
         u_r = max(0.0, u - self.spin_hold_s)
         s_s, S_s = _smoothstep(u_r / self.spin_stop_s)
-        u_b = min(u, self.brake_s)
         u_s = min(u, self.spin_hold_s) + min(u_r, self.spin_stop_s)
-        z = z0 + v0 * (u_b - self.brake_s * S_b)
         phi = phi0 + w0 * (u_s - self.spin_stop_s * S_s)
-        return z, v0 * (1.0 - s_b), phi, w0 * (1.0 - s_s)
+        return z0 + dz, v, phi, w0 * (1.0 - s_s)
 
 
 def palm_pose_at(design: TossDesign, X_WP0: RigidTransform,
@@ -170,8 +215,9 @@ def toss_trajectory(design: TossDesign, ik) -> PiecewisePolynomial:
 
 
 def throw_end_s(throw) -> float:
-    """The throw's length, counted from the end of the settling, [s]."""
-    return TossDesign.of(throw).duration_s
+    """The throw's end, counted from the end of the settling, [s]: the
+    hand-off to the move toward the grasp pose (`TossDesign.handoff_s`)."""
+    return TossDesign.of(throw).handoff_s
 
 
 def launch_s(throw) -> float:
@@ -182,5 +228,13 @@ def launch_s(throw) -> float:
 
 def end_q(throw, ik) -> np.ndarray:
     """The arm's joint angles at the end of the throw, [rad]."""
+    return end_state(throw, ik)[0]
+
+
+def end_state(throw, ik) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The arm's joint angles, velocities and accelerations at the end of
+    the throw (the hand-off), [rad, rad/s, rad/s²]."""
     design = TossDesign.of(throw)
-    return toss_trajectory(design, ik).value(design.duration_s).ravel()
+    trajectory = toss_trajectory(design, ik)
+    t = design.handoff_s
+    return tuple(trajectory.EvalDerivative(t, k).ravel() for k in range(3))

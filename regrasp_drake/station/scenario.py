@@ -74,24 +74,31 @@ class ThrowConfig:
     # Time the object is left to settle on the palm before the throw, [s].
     settle_s: float = 0.3
     # Arm joint angles at rest, palm up, before the throw, [rad]: the palm
-    # at (0.909, -0.15, 0.45) m, away from the wrist's singularity (q5 = 0).
+    # at (0.70, -0.15, 0.25) m, elbow up, away from the wrist's singularity
+    # (q5 = 0). Of the palm-up poses at x 0.7-0.9 m, z 0.25-0.35 m, the one
+    # whose toss needs the least of the servos' torque limits (inverse
+    # dynamics along the toss, gravity and the motors' reflected inertia
+    # included: at most 0.71 of a limit, the shoulder's).
     start_q_rad: list[float] = dc.field(
-        default_factory=lambda: [0.0, -0.7372, -0.6510, 0.0, -0.1826, 3.1416])
+        default_factory=lambda: [0.0, -0.0304, -2.8132, 0.0, 1.2728, -3.1416])
     # The palm's upward speed when it starts to brake, [m/s].
-    launch_speed_m_per_s: float = 3.0
+    launch_speed_m_per_s: float = 2.2
     # Duration of the lift from rest to the launch speed, [s].
-    lift_s: float = 0.22
-    # Duration of the brake from the launch speed to rest, [s]; its mean
-    # deceleration (launch_speed / brake_s) must exceed gravity's.
-    brake_s: float = 0.12
+    lift_s: float = 0.45
+    # The brake's deceleration, [m/s²]: above gravity's, so the object
+    # leaves the palm as the brake's deceleration passes g ...
+    brake_deceleration_m_per_s2: float = 16.0
+    # ... which it reaches in this rise time (a smoothstep), [s].
+    brake_ramp_s: float = 0.03
     # The palm's roll rate about its fingertip direction at launch, [rad/s]:
     # the object's spin in flight.
-    spin_rad_per_s: float = 5.0
+    spin_rad_per_s: float = 5.5
     # The roll keeps its rate this long after the palm starts to brake (the
-    # object has left by then), [s] ...
-    spin_hold_s: float = 0.04
+    # object leaves when the deceleration passes g, 45 ms into the shipped
+    # brake), [s] ...
+    spin_hold_s: float = 0.07
     # ... and then stops over this duration, [s].
-    spin_stop_s: float = 0.1
+    spin_stop_s: float = 0.15
     # On a watching throw the arm parks out of the flight's way: the throw's
     # last pose with joint 1 turned by this much, [rad].
     park_joint1_offset_rad: float = 0.7
@@ -116,7 +123,7 @@ class SensorConfig:
 class CatchConfig:
     # Height of the object's origin at the catch point, [m]: the hand waits
     # under the watched flight where the object falls through this height.
-    catch_height_m: float = 0.78
+    catch_height_m: float = 0.45
     # Catch points are looked for within this distance of catch_height_m, the
     # nearest first, [m].
     height_band_m: float = 0.3
@@ -261,11 +268,11 @@ def validate(s: Scenario) -> Scenario:
     _in_range("throw.launch_speed_m_per_s", t.launch_speed_m_per_s, 0.5, 5.0,
               " m/s")
     _in_range("throw.lift_s", t.lift_s, 0.05, 1.0, " s")
-    _in_range("throw.brake_s", t.brake_s, 0.02,
-              t.launch_speed_m_per_s / (1.2 * s.gravity_m_per_s2)
-              if s.gravity_m_per_s2 > 0 else 1.0,
-              " s (the mean deceleration at least 1.2 g, so the object "
-              "leaves the palm)")
+    _in_range("throw.brake_deceleration_m_per_s2",
+              t.brake_deceleration_m_per_s2,
+              round(1.3 * s.gravity_m_per_s2, 4), 100.0,
+              " m/s² (at least 1.3 g: the object must leave the palm)")
+    _in_range("throw.brake_ramp_s", t.brake_ramp_s, 0.005, 0.2, " s")
     _in_range("throw.spin_rad_per_s", t.spin_rad_per_s, -15.0, 15.0, " rad/s")
     _in_range("throw.spin_hold_s", t.spin_hold_s, 0.0, 0.2, " s")
     _in_range("throw.spin_stop_s", t.spin_stop_s, 0.02, 1.0, " s")
