@@ -8,7 +8,6 @@ import numpy as np
 from regrasp_drake.grid import plan_object
 from regrasp_drake.station.branching import run_cells
 from regrasp_drake.station.episode import read_ending, run_episode
-from regrasp_drake.station.palm_toss import throw_end_s
 from tests.fixtures import Row2Fixture
 
 
@@ -58,7 +57,7 @@ class RunCellsTest(Row2Fixture, unittest.TestCase):
         # throw ends, goes on bit for bit.
         parameters = [(0.40, -0.05), (0.08, -0.13), (0.20, 0.0)]
         t_end = (self.scenario.throw.settle_s
-                 + throw_end_s(self.scenario.throw))
+                 + self.scenario.throw.knot_times_s[-1])
         kwargs = dict(ik=self.ik, X_WG=self.plan.X_WG, parameters=parameters)
         plain = run_cells(self.scenario, self.obj, **kwargs)
         handed = run_cells(self.scenario, self.obj, **kwargs,

@@ -20,7 +20,6 @@ from regrasp_drake.planning.catch_plan import (
     palm_poses_for,
 )
 from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.station.palm_toss import end_q
 from regrasp_drake.station.scenario import load_scenario
 from regrasp_drake.throw_catch import plan_catch, plan_catches
 from regrasp_drake.world import robot
@@ -227,7 +226,7 @@ class TestInverseKinematics(unittest.TestCase):
             c = CatchPoint(1.0, p, y / np.linalg.norm(y), -3.0, 0.0)
             solved = False
             for X_WG in palm_poses_for(c, 0.025):
-                result = self.ik.solve(X_WG, end_q(self.scenario.throw, self.ik))
+                result = self.ik.solve(X_WG, self.scenario.catch.ik_seed_q_rad)
                 if not result.success:
                     self.assertTrue(result.reason())
                     continue
@@ -246,7 +245,7 @@ class TestInverseKinematics(unittest.TestCase):
         far = CatchPoint(1.0, np.array([3.0, 0.0, 0.8]),
                          np.array([1.0, 0.0, 0.0]), -3.0, 0.0)
         for X_WG in palm_poses_for(far, 0.025):
-            result = self.ik.solve(X_WG, end_q(self.scenario.throw, self.ik))
+            result = self.ik.solve(X_WG, self.scenario.catch.ik_seed_q_rad)
             self.assertFalse(result.success)
             self.assertIn("position error", result.reason())
 

@@ -174,8 +174,7 @@ class GenerateTest(unittest.TestCase):
         # The finished set (provenance.json) and a set whose first run was
         # killed (scenario.yaml only) both refuse another scenario before
         # any simulation, naming the first field that differs.
-        hold = self.root / "hold_0.5.yaml"
-        hold.write_text("monitor:\n  hold_s: 0.5\n")
+        hold = REPO / "benchmarks" / "scenarios" / "hold_0.5.yaml"
         killed = self.root / "killed"
         killed.mkdir()
         (killed / "scenario.yaml").write_text(scenario_text())

@@ -339,13 +339,19 @@ class AtReleaseTest(unittest.TestCase):
 
 
 class ReleasePlanToleranceTest(unittest.TestCase):
-    """The catch planned from a held-out object's release (the flight
-    propagated in closed form, no simulation) puts the palm within 1 mm and
-    1° of the catch planned from the simulated flight."""
+    """The catch planned from a held-out object's release lies inside the
+    catch tolerance the hand absorbs: the largest radius within which every
+    palm offset in the palm's plane still catches, measured by
+    benchmarks/catch_tolerance.py (10 mm grid, 81 throws) and read from its
+    JSON. (The flight predicted from the object's features does not: its
+    palm is 9-93 mm off, README.)"""
 
     def test_held_out_object(self):
         name = "holdout-scraper-d330"
-        tolerance_m = 0.001
+        tolerance = json.loads((Path(__file__).parents[1] / "benchmarks" /
+                                "catch_tolerance.json").read_text())
+        tolerance_m = tolerance["objects"][name]["tolerance_mm"] / 1000
+        self.assertGreater(tolerance_m, 0.0)
         scenario, ik = load_scenario(), ArmIk()
         obj = load_catalogue()[name]
         watched = watch(scenario, obj, ik)
@@ -355,7 +361,7 @@ class ReleasePlanToleranceTest(unittest.TestCase):
         planned = plan_catch(scenario, obj, ik, flight_from_release(
             watched.logs.object_state[:, k], t, obj, scenario))
         self.assertAlmostEqual(planned.catch_point.t_s,
-                               actual.catch_point.t_s, places=4)
+                               actual.catch_point.t_s, places=9)
         X_GP = actual.X_WG.inverse() @ planned.X_WG  # in the palm's frame
         self.assertLess(np.linalg.norm(X_GP.translation()[:2]), tolerance_m)
         self.assertLess(abs(X_GP.translation()[2]), tolerance_m)

@@ -382,9 +382,7 @@ class TestAddObject(unittest.TestCase):
         np.testing.assert_allclose(body.default_com(), spec.p_OCm, atol=1e-12)
         inspector = scene_graph.model_inspector()
         ids = plant.GetCollisionGeometriesForBody(body)
-        # A box is an inset box and 8 corner spheres, any other piece itself.
-        self.assertEqual(len(ids), sum(9 if piece.shape == "box" else 1
-                                       for piece in spec.pieces))
+        self.assertEqual(len(ids), len(spec.pieces))
         for geometry_id in ids:
             properties = inspector.GetProximityProperties(geometry_id)
             mu = properties.GetProperty("material", "coulomb_friction")
@@ -393,8 +391,7 @@ class TestAddObject(unittest.TestCase):
         visuals = inspector.GetGeometries(frame_id, Role.kIllustration)
         self.assertEqual(len(visuals), len(spec.pieces))
         # The collision shapes sit where the pieces are: at the default pose
-        # (X_WO = I) a point is inside a geometry iff it is inside a piece,
-        # except within a box's rounding (6.5 mm) of its surface.
+        # (X_WO = I) a point is inside a geometry iff it is inside a piece.
         query = scene_graph.get_query_output_port().Eval(
             scene_graph.GetMyContextFromRoot(context)
         )
@@ -404,11 +401,7 @@ class TestAddObject(unittest.TestCase):
         for p in points:
             expected = any(_inside(piece, p[None, :])[0] for piece in spec.pieces)
             distances = [d.distance for d in query.ComputeSignedDistanceToPoint(p, 0.2)]
-            near_box_surface = any(
-                piece.shape == "box" and np.min(
-                    np.abs(np.abs(p - piece.center) - piece.size / 2)) < 0.0065
-                for piece in spec.pieces)
-            if min(abs(d) for d in distances) > 1e-6 and not near_box_surface:
+            if min(abs(d) for d in distances) > 1e-6:
                 self.assertEqual(min(distances) < 0, expected, p)
                 checked += expected
         self.assertGreater(checked, 20)

@@ -43,11 +43,8 @@ class TestScenario(unittest.TestCase):
             "catch:\n  palm_across_com_fraction: 1.5\n":
                 "catch.palm_across_com_fraction",
             "arm:\n  kp: [1, 2]\n": "arm.kp",
-            # Braking too gently: the object would never leave the palm.
-            "throw:\n  brake_s: 0.5\n": "throw.brake_s",
-            "throw:\n  launch_speed_m_per_s: 9\n": "throw.launch_speed_m_per_s",
-            "throw:\n  start_q_rad: [0, -3, 0, 0, 0, 0]\n": "throw.start_q_rad[1]",
-            "catch:\n  preshape_closure: 1.5\n": "catch.preshape_closure",
+            "throw:\n  knot_times_s: [0, 0.2, 0.1]\n  knot_q_rad: "
+            "[[0,0,0,0,0,0],[0,0,0,0,0,0],[0,0,0,0,0,0]]\n": "throw.knot_times_s",
         }
         for text, field in cases.items():
             with self.subTest(field=field):
@@ -65,8 +62,8 @@ class TestScenario(unittest.TestCase):
             "sensors:\n  levels: [1, 2]\n": ("sensors.levels", "an integer"),
             "throw:\n  noise:\n    seed: 1.5\n":
                 ("throw.noise.seed", "an integer"),
-            "throw:\n  start_q_rad: [0, x, 0, 0, 0, 0]\n":
-                ("throw.start_q_rad[1]", "a number"),
+            "throw:\n  knot_q_rad: [[0, 0], [0, x]]\n":
+                ("throw.knot_q_rad[1][1]", "a number"),
             "arm:\n  kp: 3\n": ("arm.kp", "a list of numbers"),
             "catch:\n  palm_across_com_fractoin: 0\n":
                 ("catch.palm_across_com_fractoin", "palm_across_com_fraction"),
