@@ -92,6 +92,23 @@ class WeightsFileTest(unittest.TestCase):
             load_weights(self.path)
         self.assertIn(self.path, str(cm.exception))
 
+    def test_absurd_magnitudes_are_refused_when_loaded(self):
+        # Finite but absurd values would make the network's output
+        # non-finite only in the episode, after the watching throw.
+        for name, value, message in (
+                ("hidden.weight", 1e6, r"hidden\.weight magnitude: got "
+                 r"1000000\.0, expected at most 10000"),
+                ("input_std", 0.0, r"input_std minimum: got 0\.0, expected "
+                 r"at least 1e-09")):
+            with self.subTest(name=name):
+                save_weights(self.path, _trained_model(), {})
+                data = torch.load(self.path, weights_only=True)
+                data["state_dict"][name].view(-1)[0] = value
+                torch.save(data, self.path)
+                with self.assertRaisesRegex(InputError, message) as cm:
+                    load_weights(self.path)
+                self.assertEqual(len(str(cm.exception).splitlines()), 1)
+
     def test_missing_tensor_is_refused(self):
         save_weights(self.path, _trained_model(), {})
         data = torch.load(self.path, weights_only=True)
