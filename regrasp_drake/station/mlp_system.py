@@ -39,6 +39,10 @@ NUM_HIDDEN = 13
 
 _FORMAT = "regrasp_drake.CatchMlp"
 _FORMAT_VERSION = 1
+# Bounds of a weights file's values: the shipped network's largest is 248
+# (a feature's mean); the scales it divides by are at least 0.1.
+MAX_WEIGHT = 1e4
+MIN_STD = 1e-9
 
 
 class CatchMlp(torch.nn.Module):
@@ -137,6 +141,15 @@ def load_weights(path) -> tuple[CatchMlp, dict]:
             )
         if not torch.isfinite(tensor).all():
             raise InputError(f"{path}: tensor {name} holds non-finite values")
+        largest = float(tensor.abs().max()) if tensor.numel() else 0.0
+        if largest > MAX_WEIGHT:
+            raise field_error(f"{path}: tensor {name} magnitude", largest,
+                              f"at most {MAX_WEIGHT:g}")
+        if name.endswith("_std") and tensor.numel() and float(
+                tensor.min()) < MIN_STD:
+            raise field_error(f"{path}: tensor {name} minimum",
+                              float(tensor.min()), f"at least {MIN_STD:g} "
+                              "(a scale the network divides by)")
     unknown = sorted(set(state) - set(model.state_dict()))
     if unknown:
         raise InputError(f"{path}: unknown tensors {unknown}")
