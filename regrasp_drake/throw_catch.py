@@ -24,7 +24,7 @@ from regrasp_drake.planning.catch_plan import (
 )
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.episode import EpisodeResult, run_episode
-from regrasp_drake.station.palm_toss import end_state, launch_s, throw_end_s
+from regrasp_drake.station import throw
 from regrasp_drake.station.scenario import H_CATCH_RANGE, Scenario, load_scenario
 from regrasp_drake.world.objects import ObjectSpec, resolve_object
 
@@ -66,7 +66,7 @@ def seen_flight(scenario: Scenario, obj: ObjectSpec, result: EpisodeResult):
     ends early (first-throw mode replans from it when its catch fails)."""
     logs = result.logs
     t, states = logs.t, logs.object_state
-    t_free = scenario.throw.settle_s + throw_end_s(scenario.throw)
+    t_free = scenario.throw.settle_s + throw.end_s(scenario.throw)
     g = np.array([0.0, 0.0, -scenario.gravity_m_per_s2])
     v_cm = []
     for k in range(states.shape[1]):
@@ -116,12 +116,14 @@ def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     least `min_separation_s` apart. Raises InputError when none is
     reachable."""
     c = scenario.catch
-    t_ready = (scenario.throw.settle_s + throw_end_s(scenario.throw)
+    t_ready = (scenario.throw.settle_s + throw.end_s(scenario.throw)
                + c.move_to_grasp_s)
-    q_start, v_start, a_start = end_state(scenario.throw, ik)
+    toss = throw.is_toss(scenario.throw)
+    q_start, v_start, a_start = throw.end_state(scenario.throw, ik)
+    q_seed = throw.grasp_ik_seed(scenario, ik)
     # A flight that ends before the release (a watching throw stopped with
     # the object near the ground) says why there is no catch point.
-    t_release = scenario.throw.settle_s + launch_s(scenario.throw)
+    t_release = scenario.throw.settle_s + throw.release_s(scenario.throw)
     if (getattr(watched, "outcome", None) == "landed"
             and watched.logs.t[-1] < t_release):
         raise InputError(
@@ -129,12 +131,13 @@ def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
             f"t = {watched.logs.t[-1]:.3f} s, before the release at "
             f"{t_release:.3f} s, with the object near the ground (within "
             "monitor.ground_clearance_m of it, counting the object's size), "
-            "expected an object the palm holds up until it is tossed")
+            "expected an object the hand holds up until it lets it go")
     points = catch_moments(watched.logs.t, watched.logs.object_state, obj,
                            height_m=c.catch_height_m, band_m=c.height_band_m,
                            ready_s=t_ready, fall_m=H_CATCH_RANGE[1],
                            tilt_tolerance=c.tilt_tolerance,
-                           gravity_m_per_s2=scenario.gravity_m_per_s2)
+                           gravity_m_per_s2=scenario.gravity_m_per_s2,
+                           exact_crossings=toss)
     if not points:
         raise InputError(
             f"object {obj.name}: no catch point (the watched flight never "
@@ -148,13 +151,14 @@ def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
             continue
         for side, X_WG in zip(("paper", "mirrored"),
                               catch_palm_poses(scenario, point, obj)):
-            result = ik.solve(X_WG, q_start)
+            result = ik.solve(X_WG, q_seed)
             where = f"at t = {point.t_s:.3f} s, {side} side"
             if not result.success:
                 reasons.append(f"{where}: {result.reason()}")
                 continue
             ratio = move_torque_ratio(ik, q_start, result.q, c.move_to_grasp_s,
-                                      v_start=v_start, a_start=a_start)
+                                      v_start=v_start, a_start=a_start,
+                                      gravity=toss)
             if ratio > c.max_move_torque_fraction:
                 reasons.append(
                     f"{where}: the move there needs {ratio:.2f} of a servo's "

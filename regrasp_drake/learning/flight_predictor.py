@@ -52,7 +52,7 @@ from regrasp_drake.errors import InputError, field_error
 from regrasp_drake.input_files import load_json
 from regrasp_drake.planning.catch_plan import lowest_point_along
 from regrasp_drake.planning.free_flight import propagate
-from regrasp_drake.station.palm_toss import throw_end_s
+from regrasp_drake.station import throw
 
 INPUT_NAMES = ("Iyy", "rolls_freely", "roll_barrier_m")
 # The inputs each output uses (an empty tuple: the training mean).
@@ -69,7 +69,7 @@ _FREE_ROLL_M = 1e-3
 
 def free_time_s(scenario) -> float:
     """The moment the predicted state is for: the end of the throw, [s]."""
-    return scenario.throw.settle_s + throw_end_s(scenario.throw)
+    return scenario.throw.settle_s + throw.end_s(scenario.throw)
 
 
 def central_inertia(obj) -> np.ndarray:

@@ -74,7 +74,7 @@ from regrasp_drake.planning.catch_plan import (
 )
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.episode import EpisodeResult, release_time, run_episode
-from regrasp_drake.station.palm_toss import end_q, throw_end_s
+from regrasp_drake.station import throw
 from regrasp_drake.station.mlp_system import FEATURE_NAMES, CatchMlp, ParameterSpace
 from regrasp_drake.station.scenario import H_CATCH_RANGE, Scenario
 from regrasp_drake.throw_catch import (
@@ -135,14 +135,16 @@ def observe(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     except InputError as e:
         plan, error = None, str(e)
     c = scenario.catch
-    t_ready = (scenario.throw.settle_s + throw_end_s(scenario.throw)
+    t_ready = (scenario.throw.settle_s + throw.end_s(scenario.throw)
                + c.move_to_grasp_s)
-    q_end = end_q(scenario.throw, ik)
+    q_end = throw.grasp_ik_seed(scenario, ik)
     points = catch_moments(watched.logs.t, watched.logs.object_state, obj,
                            height_m=c.catch_height_m, band_m=c.height_band_m,
                            ready_s=t_ready, fall_m=H_CATCH_RANGE[1],
                            tilt_tolerance=c.tilt_tolerance,
-                           gravity_m_per_s2=scenario.gravity_m_per_s2)[:shown]
+                           gravity_m_per_s2=scenario.gravity_m_per_s2,
+                           exact_crossings=throw.is_toss(scenario.throw)
+                           )[:shown]
     if plan is not None and all(p.t_s != plan.catch_point.t_s for p in points):
         points.append(plan.catch_point)  # chosen further down the order
     reach = []

@@ -100,12 +100,14 @@ def catch_moments(t, object_state, obj: ObjectSpec, *, height_m: float,
                   band_m: float, ready_s: float, fall_m: float,
                   tilt_tolerance: float,
                   flat_tolerance_m: float = 0.005,
-                  gravity_m_per_s2: float = 9.81) -> list[CatchPoint]:
+                  gravity_m_per_s2: float = 9.81,
+                  exact_crossings: bool = False) -> list[CatchPoint]:
     """The moments of a logged flight at which the hand can catch, best first.
 
-    First the moments at which the axis is exactly horizontal
-    (`horizontal_moments`), from `ready_s` on and within `band_m` of
-    `height_m`; then the logged samples, ranked as follows.
+    With `exact_crossings` (the palm toss), first the moments at which the
+    axis is exactly horizontal (`horizontal_moments`), from `ready_s` on and
+    within `band_m` of `height_m`; then the logged samples, ranked as
+    follows.
 
     Candidates: the samples of the descent within `band_m` of `height_m`
     from `ready_s` on (the hand is in place). Order:
@@ -145,7 +147,8 @@ def catch_moments(t, object_state, obj: ObjectSpec, *, height_m: float,
         -min(lowest[k_ready] - lowest[k], fall_m), abs(p[2, k] - height_m)))
     exact = [point for point in horizontal_moments(
         t, object_state, obj, gravity_m_per_s2=gravity_m_per_s2)
-        if point.t_s >= ready_s and abs(point.p_WO[2] - height_m) <= band_m]
+        if point.t_s >= ready_s and abs(point.p_WO[2] - height_m) <= band_m
+    ] if exact_crossings else []
     return exact + [_point(t, p, v, R_WO, k) for k in candidates]
 
 
@@ -271,14 +274,17 @@ def palm_poses_for(catch_point: CatchPoint, grasp_radius_m: float,
 
 def move_torque_ratio(ik: ArmIk, q_start, q_end, duration_s: float,
                       samples: int = 41, v_start=None,
-                      a_start=None) -> float:
+                      a_start=None, gravity: bool = False) -> float:
     """The largest |τ_i| / effort limit_i the arm needs to follow the state
     machine's move from q_start (with velocity v_start and acceleration
     a_start, default at rest: the throw hands over a moving arm) to q_end at
     rest in `duration_s` (`catch_state_machine.quintic_from`), by inverse
-    dynamics of the arm and hand (the object is in flight), gravity
-    included. Above 1 the servos saturate: the arm lags, overshoots and
-    reaches the grasp position late."""
+    dynamics of the arm and hand (the object is in flight). Above 1 the
+    servos saturate: the arm lags, overshoots and reaches the grasp position
+    late. `gravity`: count the arm's weight too (the palm toss's plans). The
+    finger throw's shipped plans were checked without it, a gap found with
+    the palm toss (the controller does compensate gravity) that the throw's
+    rebuild (issue 26) closes; until then they stay reproducible."""
     plant = ik.plant
     context = plant.CreateDefaultContext()
     forces = MultibodyForces(plant)
@@ -293,9 +299,10 @@ def move_torque_ratio(ik: ArmIk, q_start, q_end, duration_s: float,
                                v0, a0, q_end)
         plant.SetPositions(context, q)
         plant.SetVelocities(context, v)
-        # Gravity too: CalcInverseDynamics counts only the forces given.
+        # CalcInverseDynamics counts only the forces given.
         forces.SetZero()
-        plant.CalcForceElementsContribution(context, forces)
+        if gravity:
+            plant.CalcForceElementsContribution(context, forces)
         torque = plant.CalcInverseDynamics(context, a, forces)
         worst = max(worst, float(np.max(np.abs(torque) / ARM_EFFORT_LIMITS)))
     return worst

@@ -1,15 +1,16 @@
 """The catch state machine of the paper's Fig. 9, as a LeafSystem.
 
 Phases, in order:
-  SETTLE  the object settles on the open palm;
-  THROW   the arm tracks the palm toss (station/palm_toss.py), the fingers
-          open: the object leaves the palm when it brakes;
-  MOVE    once the object has left the palm, the arm moves to the grasp
-          position (or, when only watching, to a park pose out of the
-          flight's way), from the toss's moving state (a quintic from its
-          position, velocity and acceleration to rest): the brake and the
-          roll's stop blend into the move; the fingers pre-shape to a cage
-          (catch.preshape_closure);
+  SETTLE  the fingers close on the object lying in the palm (palm toss:
+          the object settles on the open palm);
+  THROW   the arm tracks the fixed throw trajectory; the fingers open at the
+          release time (palm toss, station/palm_toss.py: the fingers stay
+          open and the object leaves the palm when it brakes);
+  MOVE    the arm moves to the grasp position (or, when only watching, to a
+          park pose out of the flight's way) (palm toss: from the toss's
+          moving state, a quintic from its position, velocity and
+          acceleration to rest, so the brake and the roll's stop blend into
+          the move; the fingers pre-shape to a cage, catch.preshape_closure);
   WAIT    the hand waits, palm up, until an approach sensor (IR 4-13) sees
           the object closer than h_catch;
   LOWER   the fingers close at their maximum speed while the hand is lowered
@@ -20,7 +21,8 @@ Phases, in order:
 
 The arm is commanded in joint space: every phase is a segment from q_a to q_b
 with a quintic time law (zero end velocity and acceleration), except the
-throw, which follows the toss's C2 cubic spline. The
+throw, which follows a C2 cubic spline through the scenario's knots (or the
+palm toss's spline). The
 grasp and lowered joint angles are solved by inverse kinematics once, when
 the phase that needs them starts.
 
@@ -41,6 +43,7 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
+from pydrake.trajectories import PiecewisePolynomial
 
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.palm_toss import TossDesign, toss_trajectory
@@ -83,8 +86,9 @@ def lowered_pose(X_WG: RigidTransform, h_down: float) -> RigidTransform:
 
 @dc.dataclass(frozen=True)
 class ThrowPerturbation:
-    """One throw's release noise: the palm brakes `release_dt_s` late (it
-    cruises at the launch speed meanwhile; early: the lift ends sooner), and
+    """One throw's release noise: the fingers open `release_dt_s` late (the
+    palm toss brakes that late: it cruises at the launch speed meanwhile;
+    early, the lift ends sooner), and
     each arm joint's reference gets a smooth velocity pulse that peaks at
     `joint_dv_rad_per_s` at the release, v(τ) = dv · exp(-((τ - τ_r)/w)²)
     with w = PULSE_WIDTH_S (its position and acceleration follow)."""
@@ -171,6 +175,9 @@ class CatchStateMachine(LeafSystem):
         self._approach_range = scenario.sensors.approach_range_m
         self._open = np.asarray(hand_open, float)
         self._closed = np.asarray(hand_closed, float)
+        self._toss = scenario.throw.kind == "palm_toss"
+        self._hold = self._open + scenario.throw.hold_closure * (
+            self._closed - self._open)
         self._preshape = self._open + scenario.catch.preshape_closure * (
             self._closed - self._open)
         self._speed = finger_speed_rad_per_s
@@ -180,15 +187,27 @@ class CatchStateMachine(LeafSystem):
         t = scenario.throw
         self._t_throw = t.settle_s
         self._noise = None if perturbation.is_zero() else perturbation
-        design = TossDesign.of(t, brake_delay_s=perturbation.release_dt_s)
-        self._tau_release = design.brake_start_s
-        self._throw_s = design.handoff_s
-        self._t_release = t.settle_s + design.brake_start_s
-        self._t_throw_end = t.settle_s + design.handoff_s
-        self._spline = toss_trajectory(design, ik)
+        if self._toss:
+            design = TossDesign.of(t.toss,
+                                   brake_delay_s=perturbation.release_dt_s)
+            self._tau_release = design.brake_start_s
+            self._throw_s = design.handoff_s
+            self._t_release = t.settle_s + design.brake_start_s
+            self._spline = toss_trajectory(design, ik)
+            self._q_start = np.array(design.start_q)
+        else:
+            self._tau_release = t.release_time_s
+            self._throw_s = t.knot_times_s[-1]
+            self._t_release = (t.settle_s + t.release_time_s
+                               + perturbation.release_dt_s)
+            knots = np.array(t.knot_q_rad).T
+            self._spline = (
+                PiecewisePolynomial.CubicWithContinuousSecondDerivatives(
+                    t.knot_times_s, knots, np.zeros(6), np.zeros(6)))
+            self._q_start = knots[:, 0]
+        self._t_throw_end = t.settle_s + self._throw_s
         self._spline_v = self._spline.derivative(1)
         self._spline_a = self._spline.derivative(2)
-        self._q_start = np.array(design.start_q)
 
         self._ir = self.DeclareVectorInputPort("ir_levels", 13)
         self._params = self.DeclareVectorInputPort("catch_parameters", 2)
@@ -198,7 +217,7 @@ class CatchStateMachine(LeafSystem):
 
         x0 = np.zeros(_SIZE)
         x0[_PHASE] = Phase.SETTLE
-        x0[_T_CLOSE] = 0.0
+        x0[_T_CLOSE] = 0.0  # the fingers close on the object from the start
         x0[_T_OPEN] = self._t_release
         x0[_QA] = x0[_QB] = self._q_start
         x0[_T] = 1.0
@@ -231,7 +250,7 @@ class CatchStateMachine(LeafSystem):
         tau = (t - x[_T0]) / T
         if tau >= 1.0:  # the segment is done: rest at its end
             return x[_QB], self._zeros6, self._zeros6
-        if x[_PHASE] == _MOVE:  # from the throw's moving state
+        if self._toss and x[_PHASE] == _MOVE:  # from the toss's moving state
             return quintic_from(tau, T, x[_QA], x[_V0], x[_A0], x[_QB])
         s, ds, dds = _quintic(tau)
         dq = x[_QB] - x[_QA]
@@ -248,10 +267,19 @@ class CatchStateMachine(LeafSystem):
         return q, v, a
 
     def _hand_reference(self, x, t):
-        """The fingers' (q, v) reference at time t in state x: open while
-        settling and throwing; ramping at their maximum speed to the
-        pre-shaped cage after the throw, and from there to closed from
-        t_close once catching."""
+        """The fingers' (q, v) reference at time t in state x: they ramp at
+        their maximum speed toward the hold posture (from t_close while
+        settling and throwing), open (from the release), or closed (from
+        t_close once catching). Palm toss: open while settling and
+        throwing; to the pre-shaped cage after the throw, and from there to
+        closed from t_close once catching."""
+        if not self._toss:
+            if x[_PHASE] <= _THROW and t < self._t_release:
+                return self._ramp(self._open, self._hold, t - x[_T_CLOSE])
+            if x[_PHASE] < _LOWER:
+                return self._ramp(self._hold, self._open,
+                                  t - self._t_release)
+            return self._ramp(self._open, self._closed, t - x[_T_CLOSE])
         if x[_PHASE] <= _THROW:
             return self._open, self._zeros_hand
         if x[_PHASE] < _LOWER:
@@ -301,7 +329,8 @@ class CatchStateMachine(LeafSystem):
                 q_target = self._park_q
             else:
                 X_WG = self._X_WG.Eval(context)
-                result = self._ik.solve(X_WG, q_end)
+                result = self._ik.solve(
+                    X_WG, q_end if self._toss else self._catch.ik_seed_q_rad)
                 if not result.success:
                     return self._fail(x, f"grasp pose unreachable: "
                                       f"{result.reason()}")
@@ -309,7 +338,8 @@ class CatchStateMachine(LeafSystem):
             x[_QGRASP] = q_target
             self._start_segment(x, t, q_end, q_target,
                                 self._catch.move_to_grasp_s, Phase.MOVE)
-            x[_V0], x[_A0] = v_end, a_end
+            if self._toss:  # the move takes over from the moving arm
+                x[_V0], x[_A0] = v_end, a_end
         elif (phase == Phase.MOVE and segment_done
               and self._park_q is None and self._at_grasp(context, x)):
             x[_PHASE] = Phase.WAIT

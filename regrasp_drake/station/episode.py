@@ -8,7 +8,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 
 from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.station.palm_toss import throw_end_s
+from regrasp_drake.station import throw
 from regrasp_drake.station.grasp_monitor import GraspMonitor, Outcome
 from regrasp_drake.station.scenario import Scenario
 from regrasp_drake.station.station import build_station, initialize
@@ -119,7 +119,7 @@ def release_time(scenario: Scenario) -> float:
     free from here (the flight predictor predicts its state at this moment
     too)."""
     period = scenario.sensors.period_s
-    t = scenario.throw.settle_s + throw_end_s(scenario.throw)
+    t = scenario.throw.settle_s + throw.end_s(scenario.throw)
     return math.ceil(t / period - 1e-9) * period
 
 

@@ -110,18 +110,18 @@ class TossDesign:
     brake_delay_s: float = 0.0  # d, [s]
 
     @staticmethod
-    def of(throw, brake_delay_s: float = 0.0) -> "TossDesign":
-        """The design of a scenario's ThrowConfig."""
+    def of(toss, brake_delay_s: float = 0.0) -> "TossDesign":
+        """The design of a scenario's PalmTossConfig (throw.toss)."""
         return TossDesign(
-            start_q=tuple(float(q) for q in throw.start_q_rad),
-            launch_speed=float(throw.launch_speed_m_per_s),
-            lift_s=float(throw.lift_s),
-            brake_deceleration=float(throw.brake_deceleration_m_per_s2),
-            brake_ramp_s=float(throw.brake_ramp_s),
-            spin=float(throw.spin_rad_per_s),
-            spin_stop_s=float(throw.spin_stop_s),
-            spin_hold_s=float(throw.spin_hold_s),
-            brake_delay_s=float(max(brake_delay_s, -throw.lift_s / 2)))
+            start_q=tuple(float(q) for q in toss.start_q_rad),
+            launch_speed=float(toss.launch_speed_m_per_s),
+            lift_s=float(toss.lift_s),
+            brake_deceleration=float(toss.brake_deceleration_m_per_s2),
+            brake_ramp_s=float(toss.brake_ramp_s),
+            spin=float(toss.spin_rad_per_s),
+            spin_stop_s=float(toss.spin_stop_s),
+            spin_hold_s=float(toss.spin_hold_s),
+            brake_delay_s=float(max(brake_delay_s, -toss.lift_s / 2)))
 
     @property
     def brake_start_s(self) -> float:
@@ -212,29 +212,3 @@ def toss_trajectory(design: TossDesign, ik) -> PiecewisePolynomial:
     """The arm's joint trajectory of the toss (6 rows), t ∈ [0, duration]:
     computed once per design and solver."""
     return _trajectory(design, ik)
-
-
-def throw_end_s(throw) -> float:
-    """The throw's end, counted from the end of the settling, [s]: the
-    hand-off to the move toward the grasp pose (`TossDesign.handoff_s`)."""
-    return TossDesign.of(throw).handoff_s
-
-
-def launch_s(throw) -> float:
-    """When the palm starts to brake (the object separates just after),
-    counted from the end of the settling, [s]."""
-    return TossDesign.of(throw).brake_start_s
-
-
-def end_q(throw, ik) -> np.ndarray:
-    """The arm's joint angles at the end of the throw, [rad]."""
-    return end_state(throw, ik)[0]
-
-
-def end_state(throw, ik) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The arm's joint angles, velocities and accelerations at the end of
-    the throw (the hand-off), [rad, rad/s, rad/s²]."""
-    design = TossDesign.of(throw)
-    trajectory = toss_trajectory(design, ik)
-    t = design.handoff_s
-    return tuple(trajectory.EvalDerivative(t, k).ravel() for k in range(3))

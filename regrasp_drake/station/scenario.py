@@ -9,7 +9,8 @@ the fields it changes.
 Bounds (`validate`): each field's range is in validate; and for every field,
 whatever its section: every number finite; every arm joint angle (a list of
 6 named `*_q_rad`, or a list of such lists) within the PUMA 560's joint
-limits read from sdf/puma560.sdf (`arm_joint_limits`). The file is read within the limits
+limits read from sdf/puma560.sdf (`arm_joint_limits`); the throw's knot
+times increasing from 0, at most 10 s. The file is read within the limits
 of regrasp_drake/input_files.py (size, nesting, aliases, duplicate keys);
 `1e5` is a number.
 """
@@ -39,6 +40,15 @@ class ContactConfig:
     point_stiffness_N_per_m: float = 100000.0
     # Hunt-Crossley dissipation of the object's surfaces, [s/m].
     hunt_crossley_dissipation_s_per_m: float = 10.0
+    # The palm's collision geometry: "box" (a flat box with the tactile
+    # bumper's thin box on it) or "pads" (36 sphere pads over a lowered box,
+    # the 8 under the bumper 1 mm prouder; sdf/hand.sdf holds both and the
+    # station keeps one).
+    palm: str = "box"
+    # The collision geometry of the objects' box pieces: "exact" boxes or
+    # "rounded" (Drake's inset box with 8 corner spheres,
+    # world/objects.py Piece.collision_shapes).
+    object_boxes: str = "exact"
 
 
 @dc.dataclass
@@ -55,8 +65,7 @@ class ThrowNoise:
     """Release noise: each throw's perturbation is drawn from a generator
     seeded with (seed, the throw's number), so a run is reproducible from its
     seed; zero deviations reproduce the deterministic throw exactly."""
-    # Standard deviation of the moment the palm starts to brake (the object
-    # separates just after), [s].
+    # Standard deviation of the moment the fingers open, [s].
     release_time_std_s: float = 0.0
     # Standard deviation of each arm joint's velocity offset at the release,
     # [rad/s] (a smooth pulse on the throw's reference, see
@@ -66,19 +75,18 @@ class ThrowNoise:
 
 
 @dc.dataclass
-class ThrowConfig:
-    """The palm toss (station/palm_toss.py): the object lies on the open
-    palm; the palm lifts it straight up while rolling about its fingertip
-    direction, then brakes harder than gravity so that the object leaves
-    with the palm's velocity and spin. No finger touches it."""
-    # Time the object is left to settle on the palm before the throw, [s].
-    settle_s: float = 0.3
-    # Arm joint angles at rest, palm up, before the throw, [rad]: the palm
-    # at (0.70, -0.15, 0.25) m, elbow up, away from the wrist's singularity
+class PalmTossConfig:
+    """The palm toss (station/palm_toss.py), used when throw.kind is
+    "palm_toss": the object lies on the open palm; the palm lifts it straight
+    up while rolling about its fingertip direction, then brakes harder than
+    gravity so that the object leaves with the palm's velocity and spin. No
+    finger touches it."""
+    # Arm joint angles at rest, palm up, before the toss, [rad]: the palm at
+    # (0.70, -0.15, 0.25) m, elbow up, away from the wrist's singularity
     # (q5 = 0). Of the palm-up poses at x 0.7-0.9 m, z 0.25-0.35 m, the one
     # whose toss needs the least of the servos' torque limits (inverse
     # dynamics along the toss, gravity and the motors' reflected inertia
-    # included: at most 0.71 of a limit, the shoulder's).
+    # included: 0.72 of a limit, the shoulder's; studies/palm_toss).
     start_q_rad: list[float] = dc.field(
         default_factory=lambda: [0.0, -0.0304, -2.8132, 0.0, 1.2728, -3.1416])
     # The palm's upward speed when it starts to brake, [m/s].
@@ -94,16 +102,46 @@ class ThrowConfig:
     # the object's spin in flight.
     spin_rad_per_s: float = 5.5
     # The roll keeps its rate this long after the palm starts to brake (the
-    # object leaves when the deceleration passes g, 45 ms into the shipped
-    # brake), [s] ...
+    # object leaves as the deceleration passes g, 17 ms into the brake),
+    # [s]; the move to the grasp pose takes over from the moving arm then.
     spin_hold_s: float = 0.07
-    # ... and then stops over this duration, [s].
+    # Over this time the move stops the roll, [s] (for the toss's own
+    # trajectory, which runs on to rest).
     spin_stop_s: float = 0.15
+
+
+@dc.dataclass
+class ThrowConfig:
+    # The throw: "fingers" (the fingers hold the object through the arm's
+    # swing along the knots below and open at release_time_s) or
+    # "palm_toss" (the palm tosses it, `toss` below).
+    kind: str = "fingers"
+    # Time the object is left to settle in the closed hand before the swing, [s].
+    settle_s: float = 0.3
+    # Arm joint knots of the throw (rad), at times `knot_times_s` (s) counted
+    # from the end of the settling; a C2 cubic spline with zero end
+    # velocities joins them. The first knot is the arm's initial pose.
+    knot_times_s: list[float] = dc.field(
+        default_factory=lambda: [0.0, 0.2687, 0.3693, 0.564])
+    knot_q_rad: list[list[float]] = dc.field(
+        default_factory=lambda: [
+            [0.0, -0.7404, -0.9010, 0.0, 0.0706, 3.1416],
+            [0.0, -0.4542, -0.5116, 0.0, -0.8712, 3.1416],
+            [0.0, -0.0621, -0.7490, 0.0, -0.5681, 3.1416],
+            [0.0, 0.4295, -1.6445, 0.0, 0.4274, 3.1416],
+        ])
+    # Time, counted like the knots, at which the fingers open, [s].
+    release_time_s: float = 0.31
+    # Hand joint positions while the object is held for the throw, as a
+    # fraction of the closed posture, [-].
+    hold_closure: float = 0.5
     # On a watching throw the arm parks out of the flight's way: the throw's
-    # last pose with joint 1 turned by this much, [rad].
+    # last knot with joint 1 turned by this much, [rad].
     park_joint1_offset_rad: float = 0.7
-    # Release noise (default none: every throw identical).
+    # Release noise (default none: every throw identical). With the palm
+    # toss, release_time_std_s delays the brake.
     noise: ThrowNoise = dc.field(default_factory=ThrowNoise)
+    toss: PalmTossConfig = dc.field(default_factory=PalmTossConfig)
 
 
 @dc.dataclass
@@ -123,7 +161,7 @@ class SensorConfig:
 class CatchConfig:
     # Height of the object's origin at the catch point, [m]: the hand waits
     # under the watched flight where the object falls through this height.
-    catch_height_m: float = 0.45
+    catch_height_m: float = 0.78
     # Catch points are looked for within this distance of catch_height_m, the
     # nearest first, [m].
     height_band_m: float = 0.3
@@ -142,10 +180,14 @@ class CatchConfig:
     # centre of mass (an object landing flat does not tip off the palm), 0
     # under the grasp piece (the fingers close around it), [-].
     palm_across_com_fraction: float = 1.0
-    # Inverse kinematics of the grasp pose starts from the throw's last pose,
-    # where the move to the grasp pose starts: damped least squares
-    # converges to the solution nearest its seed, so the move is the
-    # shortest one.
+    # Inverse kinematics of the grasp pose starts from these arm joint angles,
+    # [rad]: the throw's last knot, where the move to the grasp pose starts.
+    # Damped least squares converges to the solution nearest its seed, so the
+    # move is the shortest one (an elbow-up posture); from an elbow-down seed
+    # the shoulder and wrist travel up to 1.1 and 1.9 rad, saturate their
+    # servos within move_to_grasp_s and reach the grasp pose 0.1-0.2 s late.
+    ik_seed_q_rad: list[float] = dc.field(
+        default_factory=lambda: [0.0, 0.4295, -1.6445, 0.0, 0.4274, 3.1416])
     # Duration of the arm's move from the end of the throw to the grasp
     # position, [s].
     move_to_grasp_s: float = 0.35
@@ -156,8 +198,9 @@ class CatchConfig:
     # The hand is at the grasp position when its wrist is this close, [m]
     # (paper Fig. 9: 0.001 m).
     grasp_tolerance_m: float = 0.001
-    # After the throw the fingers pre-shape to this fraction of the closed
-    # posture, a cage that funnels the falling object toward the palm, [-].
+    # With the palm toss, the fingers pre-shape after the throw to this
+    # fraction of the closed posture, a cage that funnels the falling object
+    # toward the palm, [-].
     preshape_closure: float = 0.3
     # Speed at which the hand is lowered by |h_down|, [m/s].
     lower_speed_m_per_s: float = 1.0
@@ -212,6 +255,9 @@ class Scenario:
 
 
 _APPROXIMATIONS = ("sap", "similar", "lagged")
+_THROWS = ("fingers", "palm_toss")
+_PALMS = ("box", "pads")
+_OBJECT_BOXES = ("exact", "rounded")
 _SOURCES = ("fixed", "mlp")
 
 
@@ -252,6 +298,11 @@ def validate(s: Scenario) -> Scenario:
         raise field_error("contact.discrete_contact_approximation",
                           c.discrete_contact_approximation,
                           f"one of {_APPROXIMATIONS}")
+    for name, value, allowed in (("palm", c.palm, _PALMS),
+                                 ("object_boxes", c.object_boxes,
+                                  _OBJECT_BOXES)):
+        if value not in allowed:
+            raise field_error(f"contact.{name}", value, f"one of {allowed}")
     _in_range("contact.friction_coefficient", c.friction_coefficient, 0.0, 5.0)
     _in_range("contact.point_stiffness_N_per_m", c.point_stiffness_N_per_m,
               1.0, 1e8, " N/m")
@@ -264,22 +315,39 @@ def validate(s: Scenario) -> Scenario:
         for i, g in enumerate(gains):
             _in_range(f"arm.{name}[{i}]", g, 0.0, 1e6)
     t = s.throw
+    if t.kind not in _THROWS:
+        raise field_error("throw.kind", t.kind, f"one of {_THROWS}")
     _in_range("throw.settle_s", t.settle_s, 0.0, 5.0, " s")
-    _in_range("throw.launch_speed_m_per_s", t.launch_speed_m_per_s, 0.5, 5.0,
-              " m/s")
-    _in_range("throw.lift_s", t.lift_s, 0.05, 1.0, " s")
-    _in_range("throw.brake_deceleration_m_per_s2",
-              t.brake_deceleration_m_per_s2,
+    p = t.toss
+    _in_range("throw.toss.launch_speed_m_per_s", p.launch_speed_m_per_s,
+              0.5, 5.0, " m/s")
+    _in_range("throw.toss.lift_s", p.lift_s, 0.05, 1.0, " s")
+    _in_range("throw.toss.brake_deceleration_m_per_s2",
+              p.brake_deceleration_m_per_s2,
               round(1.3 * s.gravity_m_per_s2, 4), 100.0,
               " m/s² (at least 1.3 g: the object must leave the palm)")
-    _in_range("throw.brake_ramp_s", t.brake_ramp_s, 0.005, 0.2, " s")
-    _in_range("throw.spin_rad_per_s", t.spin_rad_per_s, -15.0, 15.0, " rad/s")
-    _in_range("throw.spin_hold_s", t.spin_hold_s, 0.0, 0.2, " s")
-    _in_range("throw.spin_stop_s", t.spin_stop_s, 0.02, 1.0, " s")
+    _in_range("throw.toss.brake_ramp_s", p.brake_ramp_s, 0.005, 0.2, " s")
+    _in_range("throw.toss.spin_rad_per_s", p.spin_rad_per_s, -15.0, 15.0,
+              " rad/s")
+    _in_range("throw.toss.spin_hold_s", p.spin_hold_s, 0.0, 0.2, " s")
+    _in_range("throw.toss.spin_stop_s", p.spin_stop_s, 0.02, 1.0, " s")
+    if len(t.knot_times_s) < 2 or len(t.knot_times_s) != len(t.knot_q_rad):
+        raise field_error("throw.knot_times_s", t.knot_times_s,
+                          "at least 2 times, one per entry of throw.knot_q_rad")
+    if t.knot_times_s[0] != 0.0 or t.knot_times_s[-1] > 10.0 or not all(
+            b > a for a, b in zip(t.knot_times_s, t.knot_times_s[1:])):
+        raise field_error("throw.knot_times_s", t.knot_times_s,
+                          "increasing times starting at 0, at most 10 s")
+    for i, q in enumerate(t.knot_q_rad):
+        if len(q) != 6:
+            raise field_error(f"throw.knot_q_rad[{i}]", q, "6 joint angles")
+    _in_range("throw.release_time_s", t.release_time_s, 0.0,
+              t.knot_times_s[-1], " s")
+    _in_range("throw.hold_closure", t.hold_closure, 0.0, 1.0)
     _in_range("throw.park_joint1_offset_rad", t.park_joint1_offset_rad,
               -math.pi, math.pi, " rad")
     _in_range("throw.noise.release_time_std_s", t.noise.release_time_std_s,
-              0.0, 0.02, " s")
+              0.0, 0.05, " s")
     _in_range("throw.noise.joint_velocity_std_rad_per_s",
               t.noise.joint_velocity_std_rad_per_s, 0.0, 1.0, " rad/s")
     if not isinstance(t.noise.seed, int) or t.noise.seed < 0:
@@ -301,6 +369,8 @@ def validate(s: Scenario) -> Scenario:
     _in_range("catch.palm_com_margin_m", k.palm_com_margin_m, 0.0, 0.05, " m")
     _in_range("catch.palm_across_com_fraction", k.palm_across_com_fraction,
               0.0, 1.0)
+    if len(k.ik_seed_q_rad) != 6:
+        raise field_error("catch.ik_seed_q_rad", k.ik_seed_q_rad, "6 joint angles")
     _in_range("catch.move_to_grasp_s", k.move_to_grasp_s, 0.05, 3.0, " s")
     _in_range("catch.max_move_torque_fraction", k.max_move_torque_fraction,
               0.05, 1.0)

@@ -366,8 +366,8 @@ class InfraredSensors(LeafSystem):
 
 
 class TactileBumper(LeafSystem):
-    """A tactile bumper: reads 1.0 while any of the bumper's geometries (one
-    id or a list: the pads it covers) touches any target geometry (a point
+    """A tactile bumper: reads 1.0 while the bumper's geometry (one id, or a
+    list: the palm's pads under it) touches any target geometry (a point
     pair or a hydroelastic contact surface), else 0.0.
 
     Input port `contact_results`: the plant's contact results output port.
@@ -378,7 +378,7 @@ class TactileBumper(LeafSystem):
     def __init__(
         self,
         plant: MultibodyPlant,
-        bumper_geometry_ids: GeometryId | list[GeometryId],
+        bumper_geometry_id: GeometryId | list[GeometryId],
         target_geometry_ids: list[GeometryId],
         period_s: float,
     ):
@@ -389,9 +389,9 @@ class TactileBumper(LeafSystem):
             )
         if not (period_s > 0 and math.isfinite(period_s)):
             raise field_error("period_s", period_s, "a finite period > 0 (s)")
-        if isinstance(bumper_geometry_ids, GeometryId):
-            bumper_geometry_ids = [bumper_geometry_ids]
-        self._bumper_ids = frozenset(bumper_geometry_ids)
+        self._bumper_ids = frozenset(
+            bumper_geometry_id if isinstance(bumper_geometry_id, list)
+            else [bumper_geometry_id])
         self._target_ids = frozenset(target_geometry_ids)
         self._contact_port = self.DeclareAbstractInputPort(
             "contact_results", AbstractValue.Make(ContactResults())

@@ -19,6 +19,7 @@ from pydrake.geometry import (
     MeshcatVisualizer,
     MeshcatVisualizerParams,
     ProximityProperties,
+    Role,
     RoleAssign,
     SceneGraph,
 )
@@ -40,7 +41,7 @@ from regrasp_drake.station.catch_state_machine import (
     CatchStateMachine,
     ThrowPerturbation,
 )
-from regrasp_drake.station import palm_toss
+from regrasp_drake.station import throw
 from regrasp_drake.station.grasp_monitor import GraspMonitor
 from regrasp_drake.station.scenario import Scenario
 from regrasp_drake.station.sensors import InfraredSensors, TactileBumper
@@ -145,7 +146,8 @@ def build_station(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
     builder.Connect(scene_graph.get_query_output_port(),
                     ir.GetInputPort("query_object"))
     bumper = builder.AddNamedSystem("bumper", TactileBumper(
-        plant, _bumper_geometries(plant, scene_graph, instances.hand),
+        plant, _bumper_geometry(plant, scene_graph, instances.hand,
+                                scenario.contact.palm),
         object_geometries, s.period_s))
     builder.Connect(plant.get_contact_results_output_port(),
                     bumper.GetInputPort("contact_results"))
@@ -168,7 +170,7 @@ def build_station(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
     watching = X_WG is None
     q_park = None
     if watching:
-        q_park = palm_toss.end_q(scenario.throw, ik)
+        q_park = throw.end_state(scenario.throw, ik)[0].copy()
         q_park[0] += scenario.throw.park_joint1_offset_rad
     machine = builder.AddNamedSystem("catch_state_machine", CatchStateMachine(
         scenario, ik, robot.HAND_OPEN, robot.HAND_CLOSED,
@@ -244,7 +246,9 @@ def add_world(builder: DiagramBuilder, scenario: Scenario, obj: ObjectSpec):
     instances = robot.add_puma_and_hand(plant)
     friction = CoulombFriction(scenario.contact.friction_coefficient,
                                scenario.contact.friction_coefficient)
-    object_body = add_object(plant, obj, friction)
+    object_body = add_object(
+        plant, obj, friction,
+        rounded_boxes=scenario.contact.object_boxes == "rounded")
     plant.RegisterCollisionGeometry(
         plant.world_body(), RigidTransform(), HalfSpace(), "ground", friction)
     # Meshcat does not draw half spaces: the ground is drawn as a slab.
@@ -255,6 +259,7 @@ def add_world(builder: DiagramBuilder, scenario: Scenario, obj: ObjectSpec):
         [0.0, 0.0, -scenario.gravity_m_per_s2])
     plant.Finalize()
     robot.exclude_robot_self_collisions(plant, scene_graph)
+    _keep_palm(plant, scene_graph, instances.hand, scenario.contact.palm)
     object_geometries = _set_object_contact(plant, scene_graph, object_body,
                                             scenario)
     return plant, scene_graph, instances, object_body, object_geometries
@@ -281,18 +286,39 @@ def _set_object_contact(plant, scene_graph, object_body, scenario):
     return ids
 
 
-def _bumper_geometries(plant, scene_graph, hand):
-    """The palm's pads under the tactile bumper (collision `bumper_*`)."""
+def _palm_geometries(plant, scene_graph, hand) -> dict:
+    """The palm's collision geometries by name (sdf/hand.sdf)."""
     inspector = scene_graph.model_inspector()
     palm = plant.GetBodyByName("palm", hand)
-    ids = [geometry_id
-           for geometry_id in plant.GetCollisionGeometriesForBody(palm)
-           if inspector.GetName(geometry_id).split("::")[-1]
-           .startswith("bumper_")]
-    if not ids:
-        raise RuntimeError("the hand model has no collision geometry "
-                           "'bumper_*'")
-    return ids
+    return {inspector.GetName(g).split("::")[-1]: g
+            for g in plant.GetCollisionGeometriesForBody(palm)}
+
+
+def _keep_palm(plant, scene_graph, hand, palm: str) -> None:
+    """Keeps the palm's collision geometry the scenario names
+    (contact.palm): "box", the flat box and the bumper's thin box; or
+    "pads", the sphere pads over a lowered box (named pads_*). The other
+    set loses its proximity role."""
+    for name, geometry_id in _palm_geometries(plant, scene_graph,
+                                              hand).items():
+        if name.startswith("pads_") != (palm == "pads"):
+            scene_graph.RemoveRole(plant.get_source_id(), geometry_id,
+                                   Role.kProximity)
+
+
+def _bumper_geometry(plant, scene_graph, hand, palm: str = "box"):
+    """The tactile bumper's geometry: the thin box on the flat palm, or
+    the pads under it on the padded palm (a list)."""
+    geometries = _palm_geometries(plant, scene_graph, hand)
+    if palm == "pads":
+        ids = [g for name, g in geometries.items()
+               if name.startswith("pads_bumper_")]
+        if ids:
+            return ids
+    elif "bumper" in geometries:
+        return geometries["bumper"]
+    raise RuntimeError(f"the hand model has no bumper geometry for the "
+                       f"palm {palm!r}")
 
 
 def _initial_object_pose(plant, instances, obj, scenario) -> RigidTransform:
@@ -300,8 +326,7 @@ def _initial_object_pose(plant, instances, obj, scenario) -> RigidTransform:
     knuckle line), its lowest point 1 mm above the bumper, its centre of mass
     over the palm's centre (so that a lopsided object does not tip off)."""
     context = plant.CreateDefaultContext()
-    plant.SetPositions(context, instances.arm,
-                       np.array(scenario.throw.start_q_rad, float))
+    plant.SetPositions(context, instances.arm, throw.start_q(scenario.throw))
     plant.SetPositions(context, instances.hand, robot.HAND_OPEN)
     X_WP = plant.GetFrameByName("palm_surface", instances.hand).CalcPoseInWorld(
         context)
@@ -334,7 +359,7 @@ def initialize(station: Station, scenario: Scenario) -> Simulator:
     plant = station.plant
     plant_context = plant.GetMyMutableContextFromRoot(context)
     plant.SetPositions(plant_context, station.arm,
-                       np.array(scenario.throw.start_q_rad, float))
+                       throw.start_q(scenario.throw))
     plant.SetPositions(plant_context, station.hand, robot.HAND_OPEN)
     plant.SetFreeBodyPose(plant_context, station.object_body,
                           station.X_WO_initial)

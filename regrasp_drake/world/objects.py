@@ -232,9 +232,11 @@ class Piece:
             return Capsule(self.radius, self.length)
         return Cylinder(self.radius, self.length)
 
-    def collision_shapes(self) -> list[tuple[RigidTransform, Shape]]:
+    def collision_shapes(self, rounded: bool = True
+                         ) -> list[tuple[RigidTransform, Shape]]:
         """The piece's collision geometry, (X_OG, shape) pairs. Curved
-        pieces are their own shape. A box is Drake's inset box with corner
+        pieces, and boxes unless `rounded`, are their own shape. A rounded
+        box is Drake's inset box with corner
         spheres: the box shrunk by BOX_INSET_M on every side, and in each of
         its 8 corners a sphere of radius ρ = min(edge)/4 (at most 6 mm)
         touching the full box's three faces there. A corner or an edge
@@ -243,7 +245,7 @@ class Piece:
         point contact between flat faces; the release would not converge in
         the time step, issue 26). The visual shape and the inertia are the
         exact box."""
-        if self.shape != "box":
+        if self.shape != "box" or not rounded:
             return [(self.X_OG(), self.drake_shape())]
         rho = min(float(np.min(self.size)) / 4.0, 0.006)
         half = self.size / 2.0
@@ -377,20 +379,23 @@ def add_object(
     spec: ObjectSpec,
     friction: CoulombFriction,
     model_name: str = "object",
+    rounded_boxes: bool = False,
 ) -> RigidBody:
     """Adds `spec` to `plant` (before Finalize) as a new model instance
     `model_name` holding one free rigid body (named after the object) whose
-    body frame is the object frame O. Each piece i gets collision geometries
-    "collision_i_k" (`Piece.collision_shapes`) with `friction` and a visual
+    body frame is the object frame O. Each piece i gets a collision geometry
+    "collision_i" with `friction` (with `rounded_boxes`, a box piece gets
+    "collision_i_k", k = 0..8: `Piece.collision_shapes`) and a visual
     "visual_i". Returns the body."""
     model = plant.AddModelInstance(model_name)
     body = plant.AddRigidBody(spec.name, model, spec.spatial_inertia())
     for i, piece in enumerate(spec.pieces):
         properties = ProximityProperties()
         AddContactMaterial(friction=friction, properties=properties)
-        for k, (X_OG, shape) in enumerate(piece.collision_shapes()):
-            plant.RegisterCollisionGeometry(
-                body, X_OG, shape, f"collision_{i}_{k}", properties)
+        shapes = piece.collision_shapes(rounded=rounded_boxes)
+        for k, (X_OG, shape) in enumerate(shapes):
+            name = f"collision_{i}" if len(shapes) == 1 else f"collision_{i}_{k}"
+            plant.RegisterCollisionGeometry(body, X_OG, shape, name, properties)
         X_OG, shape = piece.X_OG(), piece.drake_shape()
         color = _GRASP_COLOR if piece.grasp else _PIECE_COLOR
         plant.RegisterVisualGeometry(body, X_OG, shape, f"visual_{i}", color)

@@ -1,0 +1,60 @@
+"""The throw's timing and poses, whichever throw the scenario names
+(throw.kind): "fingers", the fingers hold the object through the arm's
+swing along the scenario's knots and open at the release time; or
+"palm_toss", the palm tosses it (station/palm_toss.py).
+
+Times are counted from the end of the settling, [s].
+"""
+
+import numpy as np
+
+from regrasp_drake.station.palm_toss import TossDesign, toss_trajectory
+
+
+def is_toss(throw) -> bool:
+    return throw.kind == "palm_toss"
+
+
+def start_q(throw) -> np.ndarray:
+    """The arm's joint angles at rest before the throw, [rad]."""
+    if is_toss(throw):
+        return np.array(throw.toss.start_q_rad, float)
+    return np.array(throw.knot_q_rad[0], float)
+
+
+def release_s(throw) -> float:
+    """When the object is let go: the fingers open, or the palm starts to
+    brake (the object leaves a few ms later)."""
+    if is_toss(throw):
+        return TossDesign.of(throw.toss).brake_start_s
+    return throw.release_time_s
+
+
+def end_s(throw) -> float:
+    """When the move toward the grasp pose (or the park pose) takes over:
+    the swing's last knot, or the palm toss's hand-off (the arm still
+    moving, the object long gone)."""
+    if is_toss(throw):
+        return TossDesign.of(throw.toss).handoff_s
+    return throw.knot_times_s[-1]
+
+
+def end_state(throw, ik) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The arm's joint angles, velocities and accelerations at end_s, [rad,
+    rad/s, rad/s²] (the finger throw ends at rest)."""
+    if not is_toss(throw):
+        q = np.array(throw.knot_q_rad[-1], float)
+        return q, np.zeros(6), np.zeros(6)
+    design = TossDesign.of(throw.toss)
+    trajectory = toss_trajectory(design, ik)
+    return tuple(trajectory.EvalDerivative(design.handoff_s, k).ravel()
+                 for k in range(3))
+
+
+def grasp_ik_seed(scenario, ik) -> np.ndarray:
+    """Where the inverse kinematics of the grasp pose starts: the scenario's
+    catch.ik_seed_q_rad (the finger throw's last knot), or the palm toss's
+    pose at its hand-off."""
+    if is_toss(scenario.throw):
+        return end_state(scenario.throw, ik)[0]
+    return np.array(scenario.catch.ik_seed_q_rad, float)

@@ -1,0 +1,164 @@
+"""The palm toss (throw.kind: palm_toss): its motion, its scenario fields,
+the padded palm and rounded boxes, and a watched toss."""
+
+import dataclasses as dc
+import unittest
+from pathlib import Path
+
+import numpy as np
+
+from regrasp_drake.errors import InputError
+from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station import throw
+from regrasp_drake.station.palm_toss import (
+    ROLL_AXIS_HEIGHT_M,
+    TossDesign,
+    palm_pose_at,
+    toss_trajectory,
+)
+from regrasp_drake.station.scenario import Scenario, load_scenario, validate
+from regrasp_drake.throw_catch import plan_catch, watch
+from regrasp_drake.world.objects import load_catalogue
+
+STUDY = Path(__file__).parents[1] / "studies" / "palm_toss" / "palm_toss.yaml"
+
+
+class TossMotionTest(unittest.TestCase):
+    def setUp(self):
+        self.design = TossDesign.of(Scenario().throw.toss)
+
+    def test_velocity_is_the_derivative_and_ends_at_rest(self):
+        d = self.design
+        t = np.arange(0.0, d.duration_s + 0.05, 1e-4)
+        z, v, phi, w = np.array([d.palm_motion(float(x)) for x in t]).T
+        np.testing.assert_allclose(np.gradient(z, t)[2:-2], v[2:-2],
+                                   atol=1e-3)
+        np.testing.assert_allclose(np.gradient(phi, t)[2:-2], w[2:-2],
+                                   atol=1e-3)
+        a = np.gradient(v, t)
+        # The lift's acceleration is at most 1.875 V / T_l, the brake's
+        # deceleration reaches A and no more.
+        self.assertLess(a.max(), 1.875 * d.launch_speed / d.lift_s * 1.01)
+        self.assertAlmostEqual(-a.min(), d.brake_deceleration, delta=0.05)
+        self.assertEqual((v[-1], w[-1]), (0.0, 0.0))
+
+    def test_level_and_rolling_at_spin_when_it_brakes(self):
+        d = self.design
+        z, v, phi, w = d.palm_motion(d.brake_start_s)
+        self.assertAlmostEqual(phi, 0.0, places=12)
+        self.assertAlmostEqual(w, d.spin, places=12)
+        self.assertAlmostEqual(v, d.launch_speed, places=12)
+        # It rolls back before (at most 0.2 Ω T_l) and never beyond.
+        phis = [d.palm_motion(t)[2] for t in np.linspace(0, d.lift_s, 200)]
+        self.assertGreater(min(phis), -0.2 * d.spin * d.lift_s)
+
+    def test_arm_follows_the_palm(self):
+        ik = ArmIk()
+        trajectory = toss_trajectory(self.design, ik)
+        X_WP0 = ik.palm_pose(np.array(self.design.start_q))
+        for t in np.linspace(0.0, self.design.duration_s, 13):
+            X = ik.palm_pose(trajectory.value(t).ravel())
+            X_want = palm_pose_at(self.design, X_WP0, float(t))
+            self.assertLess(np.linalg.norm(
+                X.translation() - X_want.translation()), 1e-3)
+        # The roll turns about an axis ROLL_AXIS_HEIGHT_M above the palm:
+        # a point of it only rises.
+        p_PA = np.array([0.0, 0.0, ROLL_AXIS_HEIGHT_M])
+        for t in (0.1, self.design.brake_start_s + 0.05):
+            X = palm_pose_at(self.design, X_WP0, t)
+            np.testing.assert_allclose(
+                X @ p_PA - X_WP0 @ p_PA,
+                [0.0, 0.0, self.design.palm_motion(t)[0]], atol=1e-12)
+
+
+class TossScenarioTest(unittest.TestCase):
+    def test_fields_are_range_checked(self):
+        for field, value in (("launch_speed_m_per_s", 9.0),
+                             ("brake_deceleration_m_per_s2", 5.0),
+                             ("spin_hold_s", -1.0)):
+            with self.subTest(field=field):
+                s = Scenario()
+                setattr(s.throw.toss, field, value)
+                with self.assertRaises(InputError) as e:
+                    validate(s)
+                self.assertIn(f"throw.toss.{field}: got", str(e.exception))
+        s = Scenario()
+        s.throw.kind = "catapult"
+        with self.assertRaisesRegex(InputError, "throw.kind: got"):
+            validate(s)
+
+    def test_timing_of_either_throw(self):
+        fingers = Scenario().throw
+        self.assertEqual(throw.end_s(fingers), fingers.knot_times_s[-1])
+        self.assertEqual(throw.release_s(fingers), fingers.release_time_s)
+        toss = load_scenario(STUDY).throw
+        d = TossDesign.of(toss.toss)
+        self.assertEqual(throw.release_s(toss), d.lift_s)
+        self.assertEqual(throw.end_s(toss), d.lift_s + d.spin_hold_s)
+        np.testing.assert_array_equal(throw.start_q(toss),
+                                      toss.toss.start_q_rad)
+
+
+class ContactGeometryTest(unittest.TestCase):
+    """contact.palm and contact.object_boxes pick the collision geometry."""
+
+    def _world(self, palm, boxes):
+        from pydrake.systems.framework import DiagramBuilder
+
+        from regrasp_drake.station.station import add_world
+        s = Scenario()
+        s.contact.palm, s.contact.object_boxes = palm, boxes
+        plant, scene_graph, instances, body, ids = add_world(
+            DiagramBuilder(), validate(s), load_catalogue()["table1-row4"])
+        inspector = scene_graph.model_inspector()
+        palm_body = plant.GetBodyByName("palm", instances.hand)
+        names = sorted(
+            inspector.GetName(g).split("::")[-1]
+            for g in plant.GetCollisionGeometriesForBody(palm_body)
+            if inspector.GetProximityProperties(g) is not None)
+        return names, len(ids)
+
+    def test_one_palm_kept(self):
+        names, count = self._world("box", "exact")
+        self.assertEqual(names, ["bumper", "palm_collision"])
+        self.assertEqual(count, 2)  # table1-row4: a cylinder and a box
+        names, count = self._world("pads", "rounded")
+        self.assertEqual(len(names), 37)
+        self.assertTrue(all(n.startswith("pads_") for n in names))
+        self.assertEqual(sum(n.startswith("pads_bumper_") for n in names), 8)
+        self.assertEqual(count, 1 + 9)  # the box: inset box, 8 spheres
+
+    def test_rounded_box_within_the_box(self):
+        from pydrake.geometry import Box, Sphere
+        box = next(p for p in load_catalogue()["table1-row4"].pieces
+                   if p.shape == "box")
+        shapes = box.collision_shapes(rounded=True)
+        self.assertIsInstance(shapes[0][1], Box)
+        half = box.size / 2
+        for X, shape in shapes[1:]:
+            self.assertIsInstance(shape, Sphere)
+            # Each corner sphere touches the box's three faces there.
+            reach = np.abs(X.translation() - box.center) + shape.radius()
+            np.testing.assert_allclose(reach, half, atol=1e-12)
+
+
+class WatchedTossTest(unittest.TestCase):
+    """can-d100-1 tossed from the padded palm: it leaves with the palm's
+    spin, and the catch is planned where its axis is exactly horizontal."""
+
+    def test_spin_and_plan(self):
+        scenario = load_scenario(STUDY)
+        ik = ArmIk()
+        obj = load_catalogue()["can-d100-1"]
+        watched = watch(scenario, obj, ik)
+        t = scenario.throw.settle_s + throw.end_s(scenario.throw)
+        k = int(np.searchsorted(watched.logs.t, t - 1e-9))
+        w = watched.logs.object_state[7:10, k]
+        spin = scenario.throw.toss.spin_rad_per_s
+        self.assertAlmostEqual(w[0], spin, delta=0.1)  # about the palm's x
+        plan = plan_catch(scenario, obj, ik, watched)
+        self.assertLess(plan.catch_point.tilt, 1e-6)
+
+
+if __name__ == "__main__":
+    unittest.main()
