@@ -328,7 +328,7 @@ def _cmd_train(args) -> int:
     if args.seed < 0:
         raise InputError(f"--seed: got {args.seed}, expected an integer >= 0")
     data = args.data or MODELS_DIR / "dataset"
-    load_training_data(data)  # refuse a bad data set before importing torch
+    load_training_data(data)  # refuse a bad data set before any training
     import torch
 
     from regrasp_drake.learning.train import train
