@@ -23,8 +23,8 @@ from pathlib import Path
 import torch
 
 from regrasp_drake.errors import InputError
-from regrasp_drake.grid import cell_parameters, nearest_cell
 from regrasp_drake.learning.learning_phase import network_features, predict
+from regrasp_drake.parameter_space import cell_parameters, nearest_cell
 from regrasp_drake.paths import MODELS_DIR, OUT_DIR
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.plots import plot_episode

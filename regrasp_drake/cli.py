@@ -89,11 +89,17 @@ def _cmd_catch(args) -> int:
     from regrasp_drake.station.scenario import check_catch_parameters
     check_catch_parameters(args.h_catch, args.h_down,
                            names=("--h-catch", "--h-down"))
+    scenario, obj, _, _ = _scenario_and_object(args)
+    from regrasp_drake.station.replay import make_meshcat, save_html
     from regrasp_drake.throw_catch import catch_once
-    result, plan = catch_once(
-        scenario_path=args.scenario, object_name=args.object,
-        object_file=args.object_file, h_catch=args.h_catch, h_down=args.h_down,
-        html=args.html, plot=args.plot)
+    meshcat = make_meshcat() if args.html is not None else None
+    result, plan = catch_once(scenario, obj, h_catch=args.h_catch,
+                              h_down=args.h_down, meshcat=meshcat)
+    if args.html is not None:
+        save_html(meshcat, args.html)
+    if args.plot is not None:
+        from regrasp_drake.plots import plot_episode
+        plot_episode(result, args.plot)
     summary = result.summary() | {"plan": plan.as_dict()}
     print(json.dumps(summary, indent=1))
     if args.json:
@@ -322,7 +328,7 @@ def _cmd_train(args) -> int:
     if args.seed < 0:
         raise InputError(f"--seed: got {args.seed}, expected an integer >= 0")
     data = args.data or MODELS_DIR / "dataset"
-    load_training_data(data)  # refuse a bad data set before importing torch
+    load_training_data(data)  # refuse a bad data set before any training
     import torch
 
     from regrasp_drake.learning.train import train

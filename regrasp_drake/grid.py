@@ -1,11 +1,4 @@
-"""The parameter space of the paper's §V.A, and success maps over it.
-
-150 cells: 15 values of h_down (-0.14 … 0.00 m in steps of 0.01, the paper's
-tolerance) times 10 values of h_catch (0.04 … 0.40 m in steps of 0.04). The
-paper gives h_catch in [0, 0.40] with a tolerance of 0.04 and 10 states: the
-10 states are 0.04 … 0.40 (h_catch = 0 would close the fingers only once the
-object touches the palm). h_down: the paper's [-0.14, -0.01] with 0.01 gives 14
-states for its 15; we add 0.00 (no lowering), as its Fig. 9 allows.
+"""Success maps over the parameter space (parameter_space.py), and their rows.
 
 A success map runs one catch episode per cell. The cells share one simulated
 throw up to the moment their parameters are first read, and fork from there
@@ -14,35 +7,36 @@ line as soon as it is known, and a run resumes from that file.
 """
 
 import json
+import multiprocessing
 import os
 import sys
 import time
 from pathlib import Path
 
-import numpy as np
+import torch
 
-H_DOWN_VALUES = np.round(np.arange(-0.14, 0.001, 0.01), 2)    # 15, [m]
-H_CATCH_VALUES = np.round(np.arange(0.04, 0.401, 0.04), 2)    # 10, [m]
+from regrasp_drake.errors import InputError, field_error, quote
+from regrasp_drake.input_files import load_json, parse_json, read_text
+from regrasp_drake.parameter_space import (  # noqa: F401 (nearest_cell: re-exported)
+    ENDINGS,
+    H_CATCH_VALUES,
+    H_DOWN_VALUES,
+    cell_parameters,
+    cells,
+    is_cell,
+    nearest_cell,
+)
+from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station.branching import run_cells
+from regrasp_drake.station.scenario import load_scenario, scenario_digest
+from regrasp_drake.throw_catch import plan_catches, watch
+from regrasp_drake.world.objects import resolve_object
+from regrasp_drake.world.robot import ARM_LINKS, FINGER_LINKS
+
 # Catch points of one object are at least this far apart in time (s): the
 # object falls some 10 cm and turns some 0.2 rad between them, so the hand
 # meets it at another speed and attitude.
 CATCH_POINT_SEPARATION_S = 0.03
-
-
-def cells() -> list[tuple[int, int]]:
-    """All (i_catch, i_down) cells, row-major in h_catch."""
-    return [(i, j) for i in range(len(H_CATCH_VALUES))
-            for j in range(len(H_DOWN_VALUES))]
-
-
-def cell_parameters(cell) -> tuple[float, float]:
-    i, j = cell
-    return float(H_CATCH_VALUES[i]), float(H_DOWN_VALUES[j])
-
-
-def nearest_cell(h_catch: float, h_down: float) -> tuple[int, int]:
-    return (int(np.argmin(np.abs(H_CATCH_VALUES - h_catch))),
-            int(np.argmin(np.abs(H_DOWN_VALUES - h_down))))
 
 
 # ---- success maps ----------------------------------------------------------
@@ -51,8 +45,6 @@ def plan_object(scenario, obj, ik, catch_point: int = 1):
     the `catch_point`-th catch point, counted as the data set counts them
     (reachable moments, best first, at least CATCH_POINT_SEPARATION_S
     apart). Raises InputError when the flight has fewer."""
-    from regrasp_drake.errors import InputError
-    from regrasp_drake.throw_catch import plan_catches, watch
     plans = plan_catches(scenario, obj, ik, watch(scenario, obj, ik),
                          count=catch_point,
                          min_separation_s=CATCH_POINT_SEPARATION_S)
@@ -67,12 +59,8 @@ def plan_object(scenario, obj, ik, catch_point: int = 1):
 def map_key(row) -> tuple[int, int]:
     """The cell of a success map's row; InputError for a row that is not
     one (no cell of the grid, no outcome)."""
-    from regrasp_drake.errors import field_error
     cell = row.get("cell") if isinstance(row, dict) else None
-    if not (isinstance(cell, list) and len(cell) == 2
-            and all(type(k) is int for k in cell)
-            and 0 <= cell[0] < len(H_CATCH_VALUES)
-            and 0 <= cell[1] < len(H_DOWN_VALUES)):
+    if not (isinstance(cell, list) and is_cell(cell)):
         raise field_error("cell", cell, "[i_catch, i_down] of the grid")
     if not isinstance(row.get("outcome"), str):
         raise field_error("outcome", row.get("outcome"), "a string")
@@ -84,8 +72,6 @@ def read_rows(path: Path, key=map_key) -> dict:
     rows, keyed by cell: map_key). A last line cut by a kill (no newline at
     its end) is skipped (its work runs again); any other line that is not a
     row key() reads is refused (InputError naming the file and the line)."""
-    from regrasp_drake.errors import InputError, quote
-    from regrasp_drake.input_files import parse_json, read_text
     done = {}
     path = Path(path)
     if not path.exists():
@@ -131,7 +117,6 @@ def append_rows(function, tasks, path: Path, done: dict, key, *,
     appends each result row to the JSON-lines file at path as it finishes
     (flushed, in the tasks' order), into `done` under key(row) too, with a
     progress bar: a killed run resumes with read_rows(path, key)."""
-    import multiprocessing
     start = time.perf_counter()
     ctx = multiprocessing.get_context("fork")
     with ctx.Pool(workers) as pool, open_rows(path) as f:
@@ -152,7 +137,6 @@ def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
     station/branching.py); `workers` simulations run at once. `only`: a
     subset of the cells (a coarse map), default all. `handoff`: see
     branching.run_cells."""
-    from regrasp_drake.station.branching import run_cells
     out = Path(out)
     done = read_rows(out)
     wanted = cells() if only is None else [tuple(c) for c in only]
@@ -185,11 +169,6 @@ def success_map(*, object_name=None, object_file=None, scenario_path=None,
     `catch_point`-th catch point, resumable. What the rows are computed from
     (the object, the catch point, the scenario's digest and the plan) is
     written beside them (`plan_path`) and must match when a run resumes."""
-    import torch
-
-    from regrasp_drake.planning.ik import ArmIk
-    from regrasp_drake.station.scenario import load_scenario
-    from regrasp_drake.world.objects import resolve_object
     torch.set_num_threads(1)
     scenario = load_scenario(scenario_path)
     obj = resolve_object(name=object_name, file=object_file)
@@ -208,7 +187,6 @@ def plan_path(out: Path) -> Path:
 
 def map_source(scenario, obj, catch_point: int, plan) -> dict:
     """What a success map's rows are computed from."""
-    from regrasp_drake.learning.library import scenario_digest
     return {"object": obj.name, "catch_point": catch_point,
             "scenario_digest": scenario_digest(scenario),
             "plan": plan.as_dict()}
@@ -220,10 +198,8 @@ def check_resume(out: Path, source: dict, flag: str = "--out") -> None:
     `flag`, the argument that named the map) rows computed from anything
     else (another object, catch point, scenario or plan), which resuming
     would mix into this map."""
-    from regrasp_drake.errors import InputError
     out, side = Path(out), plan_path(out)
     if side.exists():
-        from regrasp_drake.input_files import load_json
         try:
             stored = load_json(side)
         except InputError as e:
@@ -270,25 +246,9 @@ def end_progress():
         print(file=sys.stderr)
 
 
-# How a cell's episode ended (`ending`), from its outcome, the grasp
-# monitor's drop reason and the bodies the object touches at the end
-# (episode.read_ending; the finger and arm bodies of world/robot.py).
-ENDINGS = {
-    "caught": "caught",
-    "in_fingers": "not held: in the fingers, no grasp recognized by the "
-                  "palm sensors or the bumper",
-    "on_arm": "not held: at rest against the arm, no finger touching",
-    "loose": "not held: neither in the fingers nor against the arm",
-    "below_palm": "fell below the palm",
-    "near_ground": "fell near the ground",
-    "failed": "failed: a commanded pose out of the arm's reach (the lowered "
-              "pose, mostly), or a failed contact solve",
-    "other": "a timeout, or a row written without a drop reason",
-}
-
-
 def ending(row: dict) -> str:
-    """The key of ENDINGS that describes a map row."""
+    """The key of ENDINGS that describes a map row (the finger and arm
+    bodies of world/robot.py tell where a dropped object lies)."""
     if row["outcome"] == "caught":
         return "caught"
     if row["outcome"] == "failed":
@@ -298,7 +258,6 @@ def ending(row: dict) -> str:
         return "other"
     if reason != "not_held":
         return reason
-    from regrasp_drake.world.robot import ARM_LINKS, FINGER_LINKS
     touching = set(row.get("touching") or ())
     if touching & {b for links in FINGER_LINKS.values() for b in links}:
         return "in_fingers"

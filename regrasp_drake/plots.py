@@ -8,7 +8,16 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.colors import ListedColormap  # noqa: E402
+from matplotlib.patches import Patch, Rectangle  # noqa: E402
 
+from regrasp_drake.grid import ending, ending_counts  # noqa: E402
+from regrasp_drake.learning.dataset import SHAPE, label_cell  # noqa: E402
+from regrasp_drake.parameter_space import (  # noqa: E402
+    ENDINGS,
+    H_CATCH_VALUES,
+    H_DOWN_VALUES,
+)
 from regrasp_drake.station.catch_state_machine import Phase  # noqa: E402
 
 
@@ -58,7 +67,7 @@ def _shade_phases(ax, t, phase):
             start = k
 
 
-# The colour of each of grid.ENDINGS in the maps below.
+# The colour of each of ENDINGS in the maps below.
 ENDING_COLOURS = {"caught": "#2ca02c", "in_fingers": "#9467bd",
                   "on_arm": "#d62728", "loose": "#ff7f0e",
                   "below_palm": "#1f77b4", "near_ground": "#17becf",
@@ -69,10 +78,6 @@ def draw_endings(ax, rows: dict, *, marks=()) -> None:
     """Draws a success map on `ax`: h_down across, h_catch up (m), each cell
     coloured by how its episode ended (grid.ending), white where it has not
     run; `marks`: (cell, colour) pairs framed on top."""
-    from matplotlib.colors import ListedColormap
-    from matplotlib.patches import Rectangle
-
-    from regrasp_drake.grid import ENDINGS, H_CATCH_VALUES, H_DOWN_VALUES, ending
     keys = list(ENDINGS)
     cmap = ListedColormap([ENDING_COLOURS[k] for k in keys])
     cmap.set_bad("white")
@@ -96,9 +101,6 @@ def draw_endings(ax, rows: dict, *, marks=()) -> None:
 def ending_legend(keys=None, extra=()) -> list:
     """Legend handles for draw_endings' colours (every ending, or `keys`),
     then `extra` (label, colour) pairs for framed cells."""
-    from matplotlib.patches import Patch
-
-    from regrasp_drake.grid import ENDINGS
     return ([Patch(color=ENDING_COLOURS[k], label=ENDINGS[k])
              for k in (keys or ENDINGS)]
             + [Patch(facecolor="none", edgecolor=colour, label=label)
@@ -109,8 +111,6 @@ def plot_success_map(rows: dict, path: Path, *, title: str) -> Path:
     """`regrasp-drake grid --plot`: one map coloured by ending, its label
     (the data set's rule: the catching cell farthest from any failed cell,
     learning/dataset.label_cell) framed, with the count of each ending."""
-    from regrasp_drake.grid import ENDINGS, ending_counts
-    from regrasp_drake.learning.dataset import SHAPE, label_cell
     counts = ending_counts(rows.values())
     fig, ax = plt.subplots(figsize=(7.5, 6.2))
     caught = np.zeros(SHAPE, bool)

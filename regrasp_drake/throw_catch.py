@@ -7,7 +7,6 @@ state machine with (h_catch, h_down).
 """
 
 import dataclasses as dc
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -16,6 +15,7 @@ from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RigidTransform, RotationMatrix
 
 from regrasp_drake.errors import InputError
+from regrasp_drake.parameter_space import H_CATCH_RANGE
 from regrasp_drake.planning.catch_plan import (
     CatchPoint,
     catch_moments,
@@ -23,10 +23,11 @@ from regrasp_drake.planning.catch_plan import (
     palm_poses_for,
 )
 from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station.catch_state_machine import lowered_pose
 from regrasp_drake.station.episode import EpisodeResult, run_episode
 from regrasp_drake.station import throw
-from regrasp_drake.station.scenario import H_CATCH_RANGE, Scenario, load_scenario
-from regrasp_drake.world.objects import ObjectSpec, resolve_object
+from regrasp_drake.station.scenario import Scenario
+from regrasp_drake.world.objects import ObjectSpec
 
 
 @dc.dataclass
@@ -184,31 +185,18 @@ def reachable_h_down(ik: ArmIk, plan: CatchPlan, h_downs) -> list[bool]:
     kinematics, from the grasp pose's joint angles): where it does not, the
     episode fails with "lowered pose unreachable" whatever the object
     does."""
-    from regrasp_drake.station.catch_state_machine import lowered_pose
     return [ik.solve(lowered_pose(plan.X_WG, h), plan.q_grasp).success
             for h in h_downs]
 
 
-def catch_once(*, scenario_path=None, object_name=None, object_file=None,
-               h_catch: float, h_down: float, html: Path | None = None,
-               plot: Path | None = None) -> tuple[EpisodeResult, CatchPlan]:
-    """`regrasp-drake catch`: watch, plan, and one catch attempt."""
+def catch_once(scenario: Scenario, obj: ObjectSpec, *, h_catch: float,
+               h_down: float, meshcat=None) -> tuple[EpisodeResult, CatchPlan]:
+    """`regrasp-drake catch`: watch, plan, and one catch attempt with
+    (h_catch, h_down), [m]; `meshcat`: where the catching throw is drawn."""
     torch.set_num_threads(1)
-    scenario = load_scenario(scenario_path)
-    obj = resolve_object(name=object_name, file=object_file)
     ik = ArmIk()
-    meshcat = None
-    if html is not None:
-        from regrasp_drake.station.replay import make_meshcat
-        meshcat = make_meshcat()
     watched = watch(scenario, obj, ik)
     plan = plan_catch(scenario, obj, ik, watched)
     result = run_episode(scenario, obj, ik=ik, X_WG=plan.X_WG,
                          catch_parameters=(h_catch, h_down), meshcat=meshcat)
-    if html is not None:
-        from regrasp_drake.station.replay import save_html
-        save_html(meshcat, html)
-    if plot is not None:
-        from regrasp_drake.plots import plot_episode
-        plot_episode(result, plot)
     return result, plan

@@ -7,22 +7,16 @@ from pathlib import Path
 
 from regrasp_drake.errors import InputError
 from regrasp_drake.grid import (
-    ENDINGS,
-    H_CATCH_VALUES,
-    H_DOWN_VALUES,
     append_rows,
-    cell_parameters,
-    cells,
     check_resume,
     ending,
     ending_counts,
     format_map,
-    nearest_cell,
     plan_path,
     read_rows,
 )
+from regrasp_drake.parameter_space import ENDINGS
 from regrasp_drake.plots import plot_success_map
-from regrasp_drake.station.scenario import H_CATCH_RANGE, H_DOWN_RANGE
 
 
 def _square(k):
@@ -62,21 +56,6 @@ class AppendRowsTest(unittest.TestCase):
 
 
 class TestGrid(unittest.TestCase):
-    def test_150_distinct_cells_in_range(self):
-        all_cells = cells()
-        self.assertEqual(len(all_cells), 150)
-        params = {cell_parameters(c) for c in all_cells}
-        self.assertEqual(len(params), 150)
-        for h_catch, h_down in params:
-            self.assertTrue(H_CATCH_RANGE[0] < h_catch <= H_CATCH_RANGE[1])
-            self.assertTrue(H_DOWN_RANGE[0] <= h_down <= H_DOWN_RANGE[1])
-        self.assertEqual((len(H_CATCH_VALUES), len(H_DOWN_VALUES)), (10, 15))
-
-    def test_nearest_cell_round_trips(self):
-        for cell in cells():
-            self.assertEqual(nearest_cell(*cell_parameters(cell)), cell)
-        self.assertEqual(nearest_cell(1.0, -1.0), (9, 0))
-
     def test_map_marks_outcomes(self):
         rows = {(0, 0): {"outcome": "caught"}, (0, 1): {"outcome": "dropped"}}
         text = format_map(rows)

@@ -20,7 +20,6 @@ import torch
 from pydrake.geometry import Box, Rgba
 from pydrake.math import RigidTransform
 
-from regrasp_drake.grid import nearest_cell
 from regrasp_drake.learning import run_replay
 from regrasp_drake.learning.learning_phase import (
     NoCatchPoint,
@@ -30,6 +29,7 @@ from regrasp_drake.learning.learning_phase import (
 )
 from regrasp_drake.learning.library import load_library
 from regrasp_drake.learning.search import wavefront_order
+from regrasp_drake.parameter_space import nearest_cell
 from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning.catch_plan import CatchPoint
 from regrasp_drake.planning.ik import ArmIk
@@ -299,8 +299,8 @@ class UnreachableLoweringTest(unittest.TestCase):
         cls.obj = load_catalogue()["adze-d300-3"]
 
     def test_reach_is_the_maps_failed_columns(self):
-        from regrasp_drake.grid import H_DOWN_VALUES
         from regrasp_drake.learning.learning_phase import feasible_start
+        from regrasp_drake.parameter_space import H_DOWN_VALUES
         from regrasp_drake.throw_catch import plan_catch, watch
         plan = plan_catch(self.scenario, self.obj, self.ik,
                           watch(self.scenario, self.obj, self.ik))

@@ -10,6 +10,7 @@ from regrasp_drake.station.scenario import (
     Scenario,
     check_catch_parameters,
     load_scenario,
+    scenario_digest,
 )
 
 
@@ -91,6 +92,13 @@ class TestScenario(unittest.TestCase):
     def test_missing_file_refused(self):
         with self.assertRaisesRegex(InputError, "--scenario"):
             load_scenario("/nonexistent/scenario.yaml")
+
+    def test_scenario_digest_tracks_every_value(self):
+        scenario = load_scenario()
+        digest = scenario_digest(scenario)
+        self.assertEqual(digest, scenario_digest(load_scenario()))
+        scenario.catch.return_s += 0.01
+        self.assertNotEqual(digest, scenario_digest(scenario))
 
     def test_parameter_space(self):
         check_catch_parameters(0.40, -0.14)

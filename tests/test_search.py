@@ -14,7 +14,6 @@ import numpy as np
 
 from regrasp_drake.cli import make_parser
 from regrasp_drake.errors import InputError
-from regrasp_drake.grid import H_CATCH_VALUES, H_DOWN_VALUES, cells
 from regrasp_drake.learning.dataset import object_of
 from regrasp_drake.learning.search import (
     FEATURE_SIGMA,
@@ -27,6 +26,7 @@ from regrasp_drake.learning.search import (
     smooth,
     wavefront_order,
 )
+from regrasp_drake.parameter_space import H_CATCH_VALUES, H_DOWN_VALUES, cells
 from regrasp_drake.paths import MODELS_DIR
 
 N_CATCH, N_DOWN = len(H_CATCH_VALUES), len(H_DOWN_VALUES)

@@ -58,16 +58,35 @@ import time
 from pathlib import Path
 
 import numpy as np
+import torch
+from pydrake.common.yaml import yaml_dump_typed
 
-from regrasp_drake import grid
+from regrasp_drake import grid, numerics
 from regrasp_drake.errors import InputError, field_error, quote
 from regrasp_drake.input_files import load_json, parse_yaml, read_text
+from regrasp_drake.learning.flight_predictor import free_time_s
+from regrasp_drake.learning.search import load_prior_maps
+from regrasp_drake.parameter_space import (
+    H_CATCH_VALUES,
+    H_DOWN_VALUES,
+    cell_parameters,
+    cells,
+)
 from regrasp_drake.paths import REPO_DIR
-from regrasp_drake.world.objects import DENSITY_RANGE, MAX_CENTER_M, NAME_PATTERN
+from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station.scenario import Scenario, load_scenario
+from regrasp_drake.throw_catch import plan_catches, watch
+from regrasp_drake.world.objects import (
+    CATALOGUE_PATH,
+    DENSITY_RANGE,
+    MAX_CENTER_M,
+    NAME_PATTERN,
+    resolve_object,
+)
 
 FEATURE_NAMES = ("v_catch", "h_cm", "r_cm", "d_obj", "v_conv")
 CATCH_POINT_SEPARATION_S = grid.CATCH_POINT_SEPARATION_S
-SHAPE = (len(grid.H_CATCH_VALUES), len(grid.H_DOWN_VALUES))
+SHAPE = (len(H_CATCH_VALUES), len(H_DOWN_VALUES))
 _SAMPLE_COLUMNS = ["object", *FEATURE_NAMES, "h_catch", "h_down",
                    "label_i_catch", "label_i_down", "robustness",
                    "cells_caught"]
@@ -79,10 +98,8 @@ _BOUNDS = {
     "r_cm": (-MAX_CENTER_M, MAX_CENTER_M, " m"),
     "d_obj": (*DENSITY_RANGE, " kg/m³"),
     "v_conv": (0, 128, ""),
-    "h_catch": (float(grid.H_CATCH_VALUES[0]), float(grid.H_CATCH_VALUES[-1]),
-                " m"),
-    "h_down": (float(grid.H_DOWN_VALUES[0]), float(grid.H_DOWN_VALUES[-1]),
-               " m"),
+    "h_catch": (float(H_CATCH_VALUES[0]), float(H_CATCH_VALUES[-1]), " m"),
+    "h_down": (float(H_DOWN_VALUES[0]), float(H_DOWN_VALUES[-1]), " m"),
     "label_i_catch": (0, SHAPE[0] - 1, ""),
     "label_i_down": (0, SHAPE[1] - 1, ""),
     "robustness": (0, max(SHAPE), ""),
@@ -136,13 +153,6 @@ def _object_task(args):
     scenario_path, entry, out_dir, only = args
     name, _, point = entry.partition("@")
     point = int(point or 1)
-    import torch
-
-    from regrasp_drake.learning.flight_predictor import free_time_s
-    from regrasp_drake.planning.ik import ArmIk
-    from regrasp_drake.station.scenario import load_scenario
-    from regrasp_drake.throw_catch import plan_catches, watch
-    from regrasp_drake.world.objects import resolve_object
     torch.set_num_threads(1)
     scenario = load_scenario(scenario_path)
     obj = resolve_object(name=name)
@@ -189,7 +199,7 @@ def _object_done(out_dir: Path, name: str, only) -> bool:
     if not _read_plan(plan).get("usable"):
         return True
     rows = grid.read_rows(out_dir / "cells" / f"{name}.jsonl")
-    wanted = grid.cells() if only is None else [tuple(c) for c in only]
+    wanted = cells() if only is None else [tuple(c) for c in only]
     return all(c in rows for c in wanted)
 
 
@@ -232,9 +242,6 @@ def generate(names: list[str], out_dir: Path, *, workers: int = 1,
 
 def scenario_text(scenario_path=None) -> str:
     """The scenario as the data set records it (its every value, YAML)."""
-    from pydrake.common.yaml import yaml_dump_typed
-
-    from regrasp_drake.station.scenario import Scenario, load_scenario
     return yaml_dump_typed(load_scenario(scenario_path), schema=Scenario)
 
 
@@ -340,7 +347,6 @@ def _run_ray(tasks, workers):
     except ImportError:
         raise InputError("--backend ray: Ray is not installed (pip install "
                          "'regrasp-drake[ray]')") from None
-    from regrasp_drake import numerics
     address = os.environ.get("RAY_ADDRESS") or None
     # The workers of a cluster do not inherit this process's environment:
     # pass them the pinned kernels (numerics.py) explicitly.
@@ -395,7 +401,6 @@ def assemble(names, out_dir: Path, *, scenario_path=None, wall_s=None,
     files (entries in `names` order). wall_s, workers, backend and computed
     describe the run that called it: its wall time, and how many entries it
     computed (the others were already in out_dir)."""
-    from regrasp_drake.world.objects import CATALOGUE_PATH
     out_dir = Path(out_dir)
     maps, features, samples, unusable, unlabelled = [], [], [], [], []
     for name in names:
@@ -410,7 +415,7 @@ def assemble(names, out_dir: Path, *, scenario_path=None, wall_s=None,
         if cell is None:
             unlabelled.append(name)
             continue
-        h_catch, h_down = grid.cell_parameters(cell)
+        h_catch, h_down = cell_parameters(cell)
         samples.append({"object": name} | plan["features"] | {
             "h_catch": h_catch, "h_down": h_down,
             "label_i_catch": cell[0], "label_i_down": cell[1],
@@ -422,7 +427,7 @@ def assemble(names, out_dir: Path, *, scenario_path=None, wall_s=None,
                         features=np.array(features, float).reshape(
                             -1, len(FEATURE_NAMES)),
                         feature_names=np.array(FEATURE_NAMES),
-                        h_catch=grid.H_CATCH_VALUES, h_down=grid.H_DOWN_VALUES)
+                        h_catch=H_CATCH_VALUES, h_down=H_DOWN_VALUES)
     with (out_dir / "samples.csv").open("w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=_SAMPLE_COLUMNS)
         writer.writeheader()
@@ -465,7 +470,6 @@ def _runs(out_dir: Path, provenance: dict) -> list[dict]:
                 "workers": old.get("workers"), "backend": old.get("backend"),
                 "code_version": old.get("code_version")}]
     if provenance["entries_computed"]:
-        from regrasp_drake import numerics
         runs = runs + [{k: provenance[k] for k in (
             "code_version", "workers", "backend")} | {
             "wall_s": provenance["generation_wall_s"],
@@ -567,7 +571,6 @@ def load_training_data(data_dir: Path) -> tuple[list[dict], dict, dict]:
     its samples (load_samples), each sample's success map by entry name
     (maps.npz, as learning/search.py's load_prior_maps reads it) and its
     provenance ({} without a provenance.json)."""
-    from regrasp_drake.learning.search import load_prior_maps
     data_dir = Path(data_dir)
     samples = load_samples(data_dir)
     path = data_dir / "provenance.json"

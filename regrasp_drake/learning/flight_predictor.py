@@ -53,6 +53,8 @@ from regrasp_drake.input_files import load_json
 from regrasp_drake.planning.catch_plan import lowest_point_along
 from regrasp_drake.planning.free_flight import propagate
 from regrasp_drake.station import throw
+from regrasp_drake.throw_catch import plan_catch, watch
+from regrasp_drake.world.objects import load_catalogue
 
 INPUT_NAMES = ("Iyy", "rolls_freely", "roll_barrier_m")
 # The inputs each output uses (an empty tuple: the training mean).
@@ -357,7 +359,6 @@ def _sample_at(watched, t_s):
 def _compare(scenario, obj, ik, predicted, actual) -> dict:
     """flight_errors between two watched-shaped flights, or the error when
     either has no reachable catch point."""
-    from regrasp_drake.throw_catch import plan_catch
     row = {}
     try:
         actual_plan = plan_catch(scenario, obj, ik, actual)
@@ -426,7 +427,6 @@ def dataset_flights(data_dir) -> tuple[list, list]:
     """The data set's training flights: (ObjectSpecs, their free-flight
     states at free_time_s), one per object in name order (an object's other
     catch points, <object>@k, share its watched throw)."""
-    from regrasp_drake.world.objects import load_catalogue
     data_dir = Path(data_dir)
     plans = sorted(p for p in (data_dir / "plans").glob("*.json")
                    if "@" not in p.stem)
@@ -470,7 +470,6 @@ def train_from_dataset(data_dir, scenario, out, *, ik, eval_objects=(),
     and, for both, the predicted state after the throw against the actual
     one (state_errors, the release_* fields). Also writes the report
     (report_path: <out>.report.json)."""
-    from regrasp_drake.throw_catch import watch
     objects, states = dataset_flights(data_dir)
     if len(objects) < 10:
         raise InputError(f"{data_dir}: {len(objects)} flights, expected at "

@@ -59,7 +59,7 @@ from pydrake.math import RigidTransform
 
 from regrasp_drake import __version__
 from regrasp_drake.errors import InputError, field_error
-from regrasp_drake.grid import H_DOWN_VALUES, cell_parameters, ending, nearest_cell
+from regrasp_drake.grid import ending
 from regrasp_drake.learning import library as lib
 from regrasp_drake.learning.flight_predictor import flight_from_release
 from regrasp_drake.learning.search import (
@@ -67,6 +67,12 @@ from regrasp_drake.learning.search import (
     feature_weighted_order,
     load_prior_maps,
     wavefront_order,
+)
+from regrasp_drake.parameter_space import (
+    H_CATCH_RANGE,
+    H_DOWN_VALUES,
+    cell_parameters,
+    nearest_cell,
 )
 from regrasp_drake.planning.catch_plan import (
     CatchPoint,
@@ -76,7 +82,7 @@ from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.episode import EpisodeResult, release_time, run_episode
 from regrasp_drake.station import throw
 from regrasp_drake.station.mlp_system import FEATURE_NAMES, CatchMlp, ParameterSpace
-from regrasp_drake.station.scenario import H_CATCH_RANGE, Scenario
+from regrasp_drake.station.scenario import Scenario, scenario_digest
 from regrasp_drake.throw_catch import (
     CatchPlan,
     catch_palm_poses,
@@ -505,7 +511,7 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
             object_source=object_source,
             object_features=dict(obj.features()),
             scenario=scenario_label,
-            scenario_digest=lib.scenario_digest(scenario),
+            scenario_digest=scenario_digest(scenario),
             code_version=__version__,
             catch_point=plan.catch_point.as_dict(),
             p_WG=[float(x) for x in plan.X_WG.translation()],
@@ -543,7 +549,7 @@ def check_entry(scenario: Scenario, obj: ObjectSpec,
     """Refuses an entry learned under another scenario or for an object with
     other features: its parameters hold for the throw they were learned
     with."""
-    digest = lib.scenario_digest(scenario)
+    digest = scenario_digest(scenario)
     if entry.scenario_digest != digest:
         raise InputError(
             f"object {obj.name}: learned with scenario {entry.scenario} "

@@ -49,8 +49,6 @@ finite numbers).
 """
 
 import dataclasses as dc
-import hashlib
-import json
 import math
 import os
 from pathlib import Path
@@ -60,10 +58,14 @@ import yaml
 from pydrake.math import RigidTransform, RotationMatrix
 
 from regrasp_drake.errors import InputError, field_error
-from regrasp_drake.grid import H_CATCH_VALUES, H_DOWN_VALUES
 from regrasp_drake.input_files import load_yaml
 from regrasp_drake.learning.search import SEARCHES
-from regrasp_drake.station.scenario import H_CATCH_RANGE, H_DOWN_RANGE, Scenario
+from regrasp_drake.parameter_space import (
+    H_CATCH_RANGE,
+    H_CATCH_VALUES,
+    H_DOWN_RANGE,
+    H_DOWN_VALUES,
+)
 from regrasp_drake.world.objects import DENSITY_RANGE, MAX_CENTER_M, NAME_PATTERN
 from regrasp_drake.world.robot import arm_joint_limits
 
@@ -105,13 +107,6 @@ class LearnedEntry:
 
     def as_dict(self) -> dict:
         return dc.asdict(self)
-
-
-def scenario_digest(scenario: Scenario) -> str:
-    """A short sha256 of every value of the scenario: equal digests, same throw
-    and same catch machinery."""
-    text = json.dumps(dc.asdict(scenario), sort_keys=True)
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def load_library(path) -> dict[str, LearnedEntry]:

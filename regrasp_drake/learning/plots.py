@@ -10,7 +10,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.patches import Patch, Rectangle  # noqa: E402
 
-from regrasp_drake.grid import H_CATCH_VALUES, H_DOWN_VALUES  # noqa: E402
+from regrasp_drake.parameter_space import H_CATCH_VALUES, H_DOWN_VALUES  # noqa: E402
 
 OUTCOME_COLOURS = {"caught": "tab:green", "dropped": "tab:red",
                    "timeout": "tab:orange", "landed": "tab:purple",

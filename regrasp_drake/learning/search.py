@@ -70,14 +70,14 @@ from pathlib import Path
 import numpy as np
 
 from regrasp_drake.errors import InputError, field_error, quote
-from regrasp_drake.grid import H_CATCH_VALUES, H_DOWN_VALUES, cells
 from regrasp_drake.input_files import read_bytes
+from regrasp_drake.parameter_space import H_CATCH_VALUES, H_DOWN_VALUES, cells
 from regrasp_drake.paths import MODELS_DIR
 
 # A maps.npz unpacks to at most this many bytes (the shipped one, 222
 # entries, to some 60 kB).
 _MAX_UNPACKED_BYTES = 64 * 1024 * 1024
-Cell = tuple[int, int]  # (i_catch, i_down): indices into grid.H_*_VALUES
+Cell = tuple[int, int]  # (i_catch, i_down): indices into H_*_VALUES
 SHAPE = (len(H_CATCH_VALUES), len(H_DOWN_VALUES))  # (i_catch, i_down)
 
 SEARCHES = ("wavefront", "map-prior")  # the learning phase's `search`

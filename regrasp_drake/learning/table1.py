@@ -5,6 +5,12 @@ import json
 import sys
 from pathlib import Path
 
+from regrasp_drake import grid
+from regrasp_drake.learning.learning_phase import NoCatchPoint, learn
+from regrasp_drake.learning.library import load_library
+from regrasp_drake.learning.plots import plot_search
+from regrasp_drake.world.objects import resolve_object
+
 # Table 1 of the paper: row, object ID, density (kg/m³), centre of mass
 # (x, y, z in the object frame, m), time (s), number of trials.
 PAPER_TABLE1 = [
@@ -41,11 +47,6 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
     mode that plans each throw at its release; search: the learning phase's
     search after the network's cell, "wavefront" (the paper's) or
     "map-prior" (learning/search.py)."""
-    from regrasp_drake import grid
-    from regrasp_drake.learning.learning_phase import NoCatchPoint, learn
-    from regrasp_drake.learning.library import load_library
-    from regrasp_drake.learning.plots import plot_search
-    from regrasp_drake.world.objects import resolve_object
     if library_path is not None:
         load_library(library_path)  # a malformed file: refused before any throw
     rows = []

@@ -21,13 +21,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from regrasp_drake import grid
 from regrasp_drake.errors import InputError
 from regrasp_drake.learning.dataset import (
     FEATURE_NAMES,
     load_training_data,
     object_of,
 )
+from regrasp_drake.parameter_space import cell_parameters, nearest_cell
 from regrasp_drake.station.mlp_system import CatchMlp, ParameterSpace, save_weights
 
 SPLIT = (44, 10, 10)  # the paper's training / validation / test counts
@@ -206,14 +206,14 @@ def evaluate(model, samples, maps, train_i, test_i) -> dict:
     return {
         "test": {
             "network": error(pred) | {"catch_rate": rate(
-                lambda k: grid.nearest_cell(*pred[k]))},
+                lambda k: nearest_cell(*pred[k]))},
             "best_constant_cell": error(
-                [grid.cell_parameters(best_cell)] * len(test_i)) | {
-                "cell": list(grid.cell_parameters(best_cell)),
+                [cell_parameters(best_cell)] * len(test_i)) | {
+                "cell": list(cell_parameters(best_cell)),
                 "catch_rate": rate(lambda k: best_cell)},
             "mean_label": error([mean_label] * len(test_i)) | {
                 "parameters": [round(float(v), 4) for v in mean_label],
-                "catch_rate": rate(lambda k: grid.nearest_cell(*mean_label))},
+                "catch_rate": rate(lambda k: nearest_cell(*mean_label))},
             "objects": [samples[i]["object"] for i in test_i],
         },
     }

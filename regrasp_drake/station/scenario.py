@@ -16,6 +16,8 @@ of regrasp_drake/input_files.py (size, nesting, aliases, duplicate keys);
 """
 
 import dataclasses as dc
+import hashlib
+import json
 import math
 import re
 import typing
@@ -26,6 +28,7 @@ from pydrake.common.yaml import yaml_load_typed
 
 from regrasp_drake.errors import InputError, field_error, quote
 from regrasp_drake.input_files import load_yaml
+from regrasp_drake.parameter_space import H_CATCH_RANGE, H_DOWN_RANGE
 from regrasp_drake.world.robot import arm_joint_limits
 
 
@@ -396,11 +399,6 @@ def validate(s: Scenario) -> Scenario:
     return s
 
 
-# The parameter space of paper §V.A, [m].
-H_CATCH_RANGE = (0.0, 0.40)
-H_DOWN_RANGE = (-0.14, 0.0)
-
-
 def check_catch_parameters(h_catch, h_down,
                            names=("h_catch_m", "h_down_m")):
     """Refuses (h_catch, h_down) outside the paper's parameter space, naming
@@ -437,6 +435,13 @@ def load_scenario(path: str | Path | None = None) -> Scenario:
         return validate(scenario)
     except InputError as e:
         raise InputError(f"{path}: {e}") from None
+
+
+def scenario_digest(scenario: Scenario) -> str:
+    """A short sha256 of every value of the scenario: equal digests, same throw
+    and same catch machinery."""
+    text = json.dumps(dc.asdict(scenario), sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def check_schema(value, schema, field: str) -> None:

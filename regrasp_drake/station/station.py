@@ -43,6 +43,7 @@ from regrasp_drake.station.catch_state_machine import (
 )
 from regrasp_drake.station import throw
 from regrasp_drake.station.grasp_monitor import GraspMonitor
+from regrasp_drake.station.mlp_system import MlpSystem, load_weights
 from regrasp_drake.station.scenario import Scenario
 from regrasp_drake.station.sensors import InfraredSensors, TactileBumper
 from regrasp_drake.world import robot
@@ -158,7 +159,6 @@ def build_station(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
             "catch_parameters", ConstantVectorSource(list(catch_parameters)))
         params_port = params.get_output_port()
     else:
-        from regrasp_drake.station.mlp_system import MlpSystem, load_weights
         model, _ = load_weights(MODELS_DIR / scenario.catch.weights)
         mlp = builder.AddNamedSystem("mlp", MlpSystem(model))
         features = builder.AddNamedSystem(
