@@ -1,5 +1,5 @@
-"""Shared by the benchmark scripts' tests: loading a script as a module, and
-the bad-input assertion."""
+"""Shared by the tests of the benchmark and study scripts: loading a script
+as a module, and the bad-input assertion."""
 
 import contextlib
 import importlib.util
@@ -8,10 +8,13 @@ import sys
 from pathlib import Path
 
 
-def load_benchmark(name: str):
-    """benchmarks/<name>.py, imported as the module `name` (registered in
-    sys.modules, so that its functions pickle for a process pool)."""
-    path = Path(__file__).parents[1] / "benchmarks" / f"{name}.py"
+def load_script(path: str):
+    """The script at `path` (from the repository's top, e.g.
+    "studies/catch_timing/catch_timing.py"), imported as the module named by
+    its file name (registered in sys.modules, so that its functions pickle
+    for a process pool)."""
+    name = Path(path).stem
+    path = Path(__file__).parents[1] / path
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module

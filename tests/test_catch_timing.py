@@ -1,4 +1,4 @@
-"""benchmarks/catch_timing.py: its shipped variant against the shipped maps,
+"""studies/catch_timing/catch_timing.py: its shipped variant against the shipped maps,
 and its summary on maps made up from them (no simulation)."""
 
 import contextlib
@@ -13,9 +13,9 @@ import numpy as np
 
 from regrasp_drake.grid import read_rows
 from regrasp_drake.paths import MODELS_DIR
-from tests.refusals import RefusalAssertions, load_benchmark
+from tests.refusals import RefusalAssertions, load_script
 
-catch_timing = load_benchmark("catch_timing")
+catch_timing = load_script("studies/catch_timing/catch_timing.py")
 
 
 class CatchTimingTest(RefusalAssertions, unittest.TestCase):

@@ -174,7 +174,7 @@ class GenerateTest(unittest.TestCase):
         # The finished set (provenance.json) and a set whose first run was
         # killed (scenario.yaml only) both refuse another scenario before
         # any simulation, naming the first field that differs.
-        hold = REPO / "benchmarks" / "scenarios" / "hold_0.5.yaml"
+        hold = REPO / "studies" / "failure_modes" / "hold_0.5.yaml"
         killed = self.root / "killed"
         killed.mkdir()
         (killed / "scenario.yaml").write_text(scenario_text())

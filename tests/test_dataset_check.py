@@ -10,9 +10,9 @@ import unittest
 from pathlib import Path
 
 from regrasp_drake.paths import MODELS_DIR
-from tests.refusals import RefusalAssertions, load_benchmark
+from tests.refusals import RefusalAssertions, load_script
 
-dataset_check = load_benchmark("dataset_check")
+dataset_check = load_script("benchmarks/dataset_check.py")
 SHIPPED = MODELS_DIR / "dataset"
 
 

@@ -6,9 +6,9 @@ import unittest
 from regrasp_drake.grid import plan_object
 from regrasp_drake.station.episode import run_episode
 from tests.fixtures import Row2Fixture
-from tests.refusals import RefusalAssertions, load_benchmark
+from tests.refusals import RefusalAssertions, load_script
 
-episode_benchmark = load_benchmark("episode_benchmark")
+episode_benchmark = load_script("benchmarks/episode_benchmark.py")
 
 
 class ReplayTest(Row2Fixture, unittest.TestCase):

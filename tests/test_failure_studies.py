@@ -1,5 +1,5 @@
-"""benchmarks/failure_modes.py, catch_points.py and search_prior_sweep.py:
-their committed figures follow from their committed rows and stored maps
+"""The studies failure_modes, catch_points and search_prior_sweep: their
+committed figures follow from their committed rows and stored maps
 (no simulation)."""
 
 import contextlib
@@ -10,20 +10,20 @@ import unittest
 from pathlib import Path
 
 from regrasp_drake.grid import read_rows
-from tests.refusals import load_benchmark
+from tests.refusals import load_script
 
-failure_modes = load_benchmark("failure_modes")
-catch_points = load_benchmark("catch_points")
-search_prior_sweep = load_benchmark("search_prior_sweep")
-BENCHMARKS = Path(failure_modes.__file__).parent
+failure_modes = load_script("studies/failure_modes/failure_modes.py")
+catch_points = load_script("studies/catch_points/catch_points.py")
+search_prior_sweep = load_script("studies/search_prior_sweep/search_prior_sweep.py")
+FAILURE_MODES = Path(failure_modes.__file__).parent
 
 
 class FailureModesTest(unittest.TestCase):
     def test_committed_summaries_follow_from_the_committed_rows(self):
         for name in ("failure_modes", "failure_modes_hold_0.5"):
-            stored = json.loads((BENCHMARKS / f"{name}.json").read_text())
+            stored = json.loads((FAILURE_MODES / f"{name}.json").read_text())
             for result in stored["objects"]:
-                rows = read_rows(BENCHMARKS / name / f"{result['object']}.jsonl")
+                rows = read_rows(FAILURE_MODES / name / f"{result['object']}.jsonl")
                 self.assertEqual(len(rows), 150)
                 start = (None if result["start_cell"] is None
                          else tuple(result["start_cell"]))
@@ -40,12 +40,12 @@ class FailureModesTest(unittest.TestCase):
                                     again)
                     self.assertTrue(again["agrees_with_stored"], again)  # non-empty
         longer = json.loads(
-            (BENCHMARKS / "failure_modes_hold_0.5.json").read_text())
+            (FAILURE_MODES / "failure_modes_hold_0.5.json").read_text())
         self.assertEqual(longer["scenario"],
-                         "benchmarks/scenarios/hold_0.5.yaml")
+                         "studies/failure_modes/hold_0.5.yaml")
 
     def test_table1_row4_network_cell_ends_against_the_arm(self):
-        rows = read_rows(BENCHMARKS / "failure_modes" / "table1-row4.jsonl")
+        rows = read_rows(FAILURE_MODES / "failure_modes" / "table1-row4.jsonl")
         row = rows[(6, 6)]
         self.assertEqual(row["outcome"], "dropped")
         self.assertEqual(row["drop_reason"], "not_held")
@@ -55,13 +55,14 @@ class FailureModesTest(unittest.TestCase):
 
 
 class StoredMapStudiesTest(unittest.TestCase):
-    def _rerun(self, module, name):
+    def _rerun(self, module):
         with tempfile.TemporaryDirectory() as tmp:
             out = Path(tmp) / "out.json"
             with contextlib.redirect_stdout(io.StringIO()):
                 self.assertEqual(module.main(["--out", str(out)]), 0)
             return (json.loads(out.read_text()),
-                    json.loads((BENCHMARKS / f"{name}.json").read_text()))
+                    json.loads(Path(module.__file__).with_suffix(".json")
+                               .read_text()))
 
     def test_output_in_a_missing_directory_refused_before_any_work(self):
         for module in (failure_modes, catch_points, search_prior_sweep):
@@ -73,7 +74,7 @@ class StoredMapStudiesTest(unittest.TestCase):
                           "a path in an existing directory", err.getvalue())
 
     def test_catch_points_reproduces_its_json(self):
-        again, stored = self._rerun(catch_points, "catch_points")
+        again, stored = self._rerun(catch_points)
         self.assertEqual(again, stored)
         self.assertEqual([again["table1"][f"table1-row4{k}"]["caught"]
                           for k in ("", "@2", "@3", "@4")], [35, 54, 67, 142])
@@ -81,7 +82,7 @@ class StoredMapStudiesTest(unittest.TestCase):
         self.assertLessEqual(max(rules.values()), rules["best (oracle)"])
 
     def test_search_prior_sweep_reproduces_its_json(self):
-        again, stored = self._rerun(search_prior_sweep, "search_prior_sweep")
+        again, stored = self._rerun(search_prior_sweep)
         self.assertEqual(again, stored)
         shipped = [r for r in again["settings"] if r["eps"] == 0.2
                    and r["sigma_catch_cells"] == r["sigma_down_cells"] == 0.7]

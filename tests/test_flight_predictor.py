@@ -342,14 +342,15 @@ class ReleasePlanToleranceTest(unittest.TestCase):
     """The catch planned from a held-out object's release lies inside the
     catch tolerance the hand absorbs: the largest radius within which every
     palm offset in the palm's plane still catches, measured by
-    benchmarks/catch_tolerance.py (10 mm grid, 81 throws) and read from its
-    JSON. (The flight predicted from the object's features does not: its
-    palm is 9-93 mm off, README.)"""
+    studies/catch_tolerance/catch_tolerance.py (10 mm grid, 81 throws) and
+    read from its JSON. (The flight predicted from the object's features does
+    not: its palm is 9-93 mm off, studies/catch_tolerance/FINDINGS.md.)"""
 
     def test_held_out_object(self):
         name = "holdout-scraper-d330"
-        tolerance = json.loads((Path(__file__).parents[1] / "benchmarks" /
-                                "catch_tolerance.json").read_text())
+        tolerance = json.loads((Path(__file__).parents[1] / "studies" /
+                                "catch_tolerance" / "catch_tolerance.json")
+                               .read_text())
         tolerance_m = tolerance["objects"][name]["tolerance_mm"] / 1000
         self.assertGreater(tolerance_m, 0.0)
         scenario, ik = load_scenario(), ArmIk()

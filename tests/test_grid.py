@@ -154,12 +154,12 @@ class ResumeCheckTest(unittest.TestCase):
 
 
 class SuccessMapPlotTest(unittest.TestCase):
-    """`grid --plot`: the stored table1-row4 map (benchmarks/failure_modes)
+    """`grid --plot`: the stored table1-row4 map (studies/failure_modes)
     drawn by ending, with its label framed."""
 
     def test_plot_written(self):
-        rows = read_rows(Path(__file__).parents[1] / "benchmarks" /
-                         "failure_modes" / "table1-row4.jsonl")
+        rows = read_rows(Path(__file__).parents[1] / "studies" / "failure_modes"
+                         / "failure_modes" / "table1-row4.jsonl")
         self.assertEqual(len(rows), 150)
         with tempfile.TemporaryDirectory() as d:
             path = plot_success_map(rows, Path(d) / "m.png", title="row 4")
@@ -169,7 +169,7 @@ class SuccessMapPlotTest(unittest.TestCase):
 
 class CatchPointPlanTest(unittest.TestCase):
     """`grid --catch-point K` plans as the data set does: table1-row3's second
-    catch point is the one benchmarks/catch_points.py mapped."""
+    catch point is the one studies/catch_points/catch_points.py mapped."""
 
     def test_second_catch_point_and_one_too_many(self):
         from regrasp_drake.grid import plan_object
@@ -178,8 +178,8 @@ class CatchPointPlanTest(unittest.TestCase):
         from regrasp_drake.world.objects import resolve_object
         scenario, ik = load_scenario(), ArmIk()
         obj = resolve_object(name="table1-row3")
-        stored = json.loads((Path(__file__).parents[1] / "benchmarks" /
-                             "catch_points" / "plans" /
+        stored = json.loads((Path(__file__).parents[1] / "studies" /
+                             "catch_points" / "catch_points" / "plans" /
                              "table1-row3@2.json").read_text())
         plan = plan_object(scenario, obj, ik, catch_point=2)
         self.assertEqual(plan.as_dict(), stored["plan"])

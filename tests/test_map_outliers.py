@@ -1,4 +1,4 @@
-"""benchmarks/map_outliers.py: typicality of a map, the ending prior's
+"""studies/map_outliers/map_outliers.py: typicality of a map, the ending prior's
 search, and the committed figures."""
 
 import json
@@ -8,9 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from tests.refusals import RefusalAssertions, load_benchmark
+from tests.refusals import RefusalAssertions, load_script
 
-map_outliers = load_benchmark("map_outliers")
+map_outliers = load_script("studies/map_outliers/map_outliers.py")
 SHAPE = map_outliers.SHAPE
 KEYS = map_outliers.ENDING_KEYS
 
@@ -88,8 +88,8 @@ class CommittedFiguresTest(RefusalAssertions, unittest.TestCase):
     main = staticmethod(map_outliers.main)
 
     def test_a_rerun_gives_the_committed_json(self):
-        committed = json.loads((Path(__file__).parents[1] / "benchmarks" /
-                                "map_outliers.json").read_text())
+        committed = json.loads(Path(map_outliers.__file__)
+                               .with_suffix(".json").read_text())
         with tempfile.TemporaryDirectory() as d:
             out = Path(d) / "m.json"
             self.assertEqual(map_outliers.main(["--out", str(out)]), 0)

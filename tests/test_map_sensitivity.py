@@ -1,12 +1,13 @@
-"""benchmarks/map_sensitivity.py: cells changed against chance, bad input."""
+"""studies/map_sensitivity/map_sensitivity.py: cells changed against chance,
+bad input."""
 
 import unittest
 
 import numpy as np
 
-from tests.refusals import RefusalAssertions, load_benchmark
+from tests.refusals import RefusalAssertions, load_script
 
-sensitivity = load_benchmark("map_sensitivity")
+sensitivity = load_script("studies/map_sensitivity/map_sensitivity.py")
 
 
 def _row(caught, w_O=(0.0, 0.0, 0.0)):

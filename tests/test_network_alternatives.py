@@ -1,5 +1,5 @@
-"""benchmarks/network_alternatives.py: the predictors it compares with the
-network, on the shipped data set's maps."""
+"""studies/network_alternatives/network_alternatives.py: the predictors it
+compares with the network, on the shipped data set's maps."""
 
 import contextlib
 import io
@@ -14,9 +14,9 @@ import torch
 from regrasp_drake import grid
 from regrasp_drake.learning.dataset import label_cell, load_samples, object_of
 from regrasp_drake.learning.train import _arrays, split_indices
-from tests.refusals import RefusalAssertions, load_benchmark
+from tests.refusals import RefusalAssertions, load_script
 
-alternatives = load_benchmark("network_alternatives")
+alternatives = load_script("studies/network_alternatives/network_alternatives.py")
 
 
 class NetworkAlternativesTest(RefusalAssertions, unittest.TestCase):

@@ -1,5 +1,5 @@
-"""benchmarks/noise_curve.py: its catch-rate intervals, its refusals, and one
-noiseless trial per mode from the shipped libraries."""
+"""studies/noise_curve/noise_curve.py: its catch-rate intervals, its refusals,
+and one noiseless trial per mode from the shipped libraries."""
 
 import contextlib
 import io
@@ -8,9 +8,9 @@ import tempfile
 import unittest
 from pathlib import Path
 
-from tests.refusals import RefusalAssertions, load_benchmark
+from tests.refusals import RefusalAssertions, load_script
 
-noise_curve = load_benchmark("noise_curve")
+noise_curve = load_script("studies/noise_curve/noise_curve.py")
 
 
 class WilsonIntervalTest(unittest.TestCase):

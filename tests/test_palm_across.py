@@ -1,12 +1,12 @@
-"""benchmarks/palm_across.py: grouping and counting stored success maps."""
+"""studies/palm_across/palm_across.py: grouping and counting stored success maps."""
 
 import unittest
 
 import numpy as np
 
-from tests.refusals import load_benchmark
+from tests.refusals import load_script
 
-palm_across = load_benchmark("palm_across")
+palm_across = load_script("studies/palm_across/palm_across.py")
 
 
 class PalmAcrossTest(unittest.TestCase):

@@ -1,21 +1,22 @@
-"""benchmarks/release_convergence.py: the committed figures and bad input."""
+"""studies/release_convergence/release_convergence.py: the committed figures
+and bad input."""
 
 import json
 import tempfile
 import unittest
 from pathlib import Path
 
-from tests.refusals import RefusalAssertions, load_benchmark
+from tests.refusals import RefusalAssertions, load_script
 
-release_convergence = load_benchmark("release_convergence")
+release_convergence = load_script("studies/release_convergence/release_convergence.py")
 
 
 class ReleaseConvergenceTest(RefusalAssertions, unittest.TestCase):
     main = staticmethod(release_convergence.main)
 
     def test_a_rerun_gives_the_committed_json(self):
-        committed = json.loads((release_convergence.BENCHMARKS /
-                                "release_convergence.json").read_text())
+        committed = json.loads(Path(release_convergence.__file__)
+                               .with_suffix(".json").read_text())
         with tempfile.TemporaryDirectory() as d:
             out = Path(d) / "r.json"
             self.assertEqual(self.main(["--out", str(out)]), 0)

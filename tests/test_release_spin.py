@@ -1,4 +1,4 @@
-"""benchmarks/release_spin.py: the state it reports is the data set's, and
+"""studies/release_spin/release_spin.py: the state it reports is the data set's, and
 bad input is refused."""
 
 import contextlib
@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 
 from regrasp_drake.paths import MODELS_DIR
-from tests.refusals import RefusalAssertions, load_benchmark
+from tests.refusals import RefusalAssertions, load_script
 
-release_spin = load_benchmark("release_spin")
+release_spin = load_script("studies/release_spin/release_spin.py")
 
 
 class ThrowTest(unittest.TestCase):

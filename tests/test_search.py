@@ -268,10 +268,10 @@ class TestMapPriorOrder(unittest.TestCase):
     def test_shipped_prior_has_features_and_the_kernel_width_is_chosen(self):
         names, caught, features = load_prior_maps(with_features=True)
         self.assertEqual(features.shape, (len(names), 5))
-        # The width is the one benchmarks/search_prior.py's rule picks on
-        # the shipped maps (None: every map alike).
-        chosen = json.loads((Path(__file__).parents[1] / "benchmarks"
-                             / "search_prior.json").read_text())
+        # The width is the one studies/search_prior/search_prior.py's rule
+        # picks on the shipped maps (None: every map alike).
+        chosen = json.loads((Path(__file__).parents[1] / "studies"
+                             / "search_prior" / "search_prior.json").read_text())
         self.assertEqual(chosen["feature_sigma"]["chosen"], FEATURE_SIGMA)
         self.assertTrue(chosen["feature_sigma"]["agrees"])
         # The entries' features are those of their plans in the data set.

@@ -1,13 +1,14 @@
-"""benchmarks/throws_summary.py: reading table1's results, refusing bad ones."""
+"""studies/throws_summary/throws_summary.py: reading table1's results,
+refusing bad ones."""
 
 import json
 import tempfile
 import unittest
 from pathlib import Path
 
-from tests.refusals import load_benchmark
+from tests.refusals import load_script
 
-summary = load_benchmark("throws_summary")
+summary = load_script("studies/throws_summary/throws_summary.py")
 
 
 def _row(name, throws, caught=True, trials=None):

@@ -1,4 +1,5 @@
-"""benchmarks/timestep_study.py: map agreement against chance, bad input."""
+"""studies/timestep_convergence/timestep_study.py: map agreement against
+chance, bad input."""
 
 import json
 import unittest
@@ -7,9 +8,9 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from tests.refusals import RefusalAssertions, load_benchmark
+from tests.refusals import RefusalAssertions, load_script
 
-study = load_benchmark("timestep_study")
+study = load_script("studies/timestep_convergence/timestep_study.py")
 
 
 class AgreementTest(unittest.TestCase):

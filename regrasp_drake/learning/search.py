@@ -39,7 +39,7 @@ posterior mean sum_m w_m P_m[c] / sum_m w_m, ties (to 1e-9) going to the
 earlier cell in the wavefront order from the start. Each cell is tried at
 most once and all 150 eventually.
 
-Source: `benchmarks/search_prior.py` (search_prior.json), offline on the
+Source: `studies/search_prior/search_prior.py` (search_prior.json), offline on the
 training maps (222 maps: 56 objects, four catch points each),
 leave-one-object-out (every catch point of the held-out object removed from
 the prior), from the start cell (7, 2): over the 181 held-out maps that
@@ -92,7 +92,7 @@ SMOOTHING_RADIUS = 2  # the smoothing kernel's half-width, [cells]
 # features: of None (uniform), 4, 3, 2, 1.5, 1, 0.75 and 0.5, the one whose
 # leave-one-object-out search on the training maps (from the cell (7, 2))
 # catches most often within 2 cells (the paper's 3 throws), ties going to
-# more often within 3 cells; benchmarks/search_prior.py, "feature_sigma".
+# more often within 3 cells; studies/search_prior/search_prior.py, "feature_sigma".
 # On the 222 maps of four catch points per object that is None (0.851 and
 # 0.873 within 2 and 3 cells; 0.75, the choice on the 112 maps of two
 # catch points, 0.845 and 0.873): every map weighs alike.

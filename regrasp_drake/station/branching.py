@@ -51,9 +51,9 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
     `on_result(i, row)` is called as each cell finishes. At most `workers`
     children run at once.
     `handoff`: (t_s, other scenario), to simulate up to t_s under `scenario`
-    and from there under the other (benchmarks/timestep_study.py: the same
-    throw, caught at another plant time step); t_s must come before any
-    cell's trigger.
+    and from there under the other (the same throw, caught at another plant
+    time step: studies/timestep_convergence/timestep_study.py); t_s must
+    come before any cell's trigger.
     """
     t0 = time.perf_counter()
     parameters = [(float(h), float(d)) for h, d in parameters]
