@@ -6,8 +6,7 @@ simulation).
     .venv/bin/python studies/palm_across/palm_across.py
         [--out studies/palm_across/palm_across.json]
 
-The stored results (how they were made, README "Under the centre of mass or
-under the grasp piece?"):
+The stored results (how they were made: FINDINGS.md beside this script):
 - models/dataset/maps.npz: fraction 1, every training object;
 - studies/palm_across/palm_across/f05/maps.npz: fraction 0.5, the 10 training
   objects whose centre of mass lies 20 mm or more off the grasp piece's
