@@ -1,12 +1,12 @@
-"""The throw: a palm toss, the same motion for every object.
+"""The palm toss (throw.kind: palm_toss), the same motion for every object.
 
 The object lies on the open palm (no finger touches it). The palm, facing up,
 is lifted straight up and rolled about its own x axis (the fingertip
-direction) at the same time; then it brakes harder than gravity, so every
-contact unloads at once and the object leaves with the palm's velocity and
-angular velocity of that instant: a well-posed release (the contact force
-falls continuously to zero; there is no stick-slip switch for the time step
-to resolve). The roll gives the object a designed spin about the palm's x,
+direction) at the same time; then it brakes harder than gravity, so the
+contacts unload together and the object leaves with the palm's velocity and
+angular velocity of that instant: the contact force falls continuously to
+zero, with no fingers for the object to roll across (how far that makes the
+release converge in the time step: studies/palm_toss/FINDINGS.md). The roll gives the object a designed spin about the palm's x,
 so its symmetry axis (along the palm's y) turns end over end in flight and
 is horizontal again half a turn later: the catch is another grasp.
 
@@ -14,16 +14,17 @@ Palm motion, t from the start of the throw (velocities as quintic
 smoothsteps s(τ) = 10τ³ - 15τ⁴ + 6τ⁵, so accelerations are continuous and
 start and end at zero; the roll angle φ during the lift follows the quintic
 p(τ) = -4τ³ + 7τ⁴ - 3τ⁵, with p = p' = p'' = 0 at τ = 0 and p = 0, p' = 1,
-p'' = 0 at τ = 1: the palm first rolls back by at most 0.2 Ω T_l (10° for
-the shipped toss) and is level again, rolling at Ω, when it starts to brake,
-so the object is pressed straight onto it and every contact unloads at once):
+p'' = 0 at τ = 1: the palm first rolls back by at most 0.2 Ω T_l (28° for
+the default toss, the object pressed on by the lift) and is level again,
+rolling at Ω, when it starts to brake, so that the object is pressed straight
+onto it as the contacts unload):
   lift   0 ≤ t < T_l:   v_z = V s(t/T_l),       φ = Ω T_l p(t/T_l)
   cruise T_l ≤ t < T_l + d: v_z = V, ω_x = Ω    (d: a late release, noise)
   brake  then the deceleration rises to A over T_r (a smoothstep), stays
          there, and falls back to 0 over T_r as v_z reaches 0;
          the roll keeps ω_x = Ω for T_h more, then stops over T_s:
          ω_x = Ω (1 - s(·/T_s)).
-A exceeds g (1.6 g shipped): the object separates as the deceleration
+A exceeds g (1.6 g by default): the object separates as the deceleration
 passes g, a few ms into the brake, where v_z ≈ V, at the constant roll rate
 Ω. The quick rise matters: with a slow one (a smoothstep brake over 0.2 s,
 the object leaving 45 ms in), the unloading object rocks on its supports and
