@@ -5,13 +5,24 @@ import tempfile
 import unittest
 from pathlib import Path
 
+import numpy as np
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import DiscreteContactApproximation
+
 from regrasp_drake.errors import InputError
+from regrasp_drake.input_files import parse_yaml
+from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.scenario import (
     Scenario,
     check_catch_parameters,
     load_scenario,
     scenario_digest,
+    scenario_yaml,
 )
+from regrasp_drake.station.station import build_station, initialize
+from regrasp_drake.world.objects import load_catalogue
+
+TEST_SCENARIOS = Path(__file__).parent / "scenarios.yaml"
 
 
 class TestScenario(unittest.TestCase):
@@ -170,6 +181,56 @@ class TestScenario(unittest.TestCase):
                                        (float("nan"), -0.05, "h_catch_m")):
             with self.assertRaisesRegex(InputError, field):
                 check_catch_parameters(h_catch, h_down)
+
+
+def _leaves(tree, prefix=""):
+    """{dotted field: value} of a parsed scenario, lists as one value."""
+    if isinstance(tree, dict) and not prefix.endswith("directives"):
+        return {k: v for key, item in tree.items()
+                for k, v in _leaves(item, f"{prefix}.{key}" if prefix
+                                    else key).items()}
+    return {prefix: tree}
+
+
+class OneOfEverythingTest(unittest.TestCase):
+    """A scenario with every field away from its default and a directive
+    list of its own (tests/scenarios.yaml) loads, and the station builds
+    and steps from it."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.scenario = load_scenario(TEST_SCENARIOS, name="OneOfEverything")
+        cls.obj = load_catalogue()["table1-row2"]
+        cls.ik = ArmIk()
+
+    def test_every_field_away_from_its_default(self):
+        ours = _leaves(parse_yaml(scenario_yaml(self.scenario), tags=True))
+        default = _leaves(parse_yaml(scenario_yaml(Scenario()), tags=True))
+        self.assertEqual(ours.keys(), default.keys())
+        self.assertEqual([k for k in ours if ours[k] == default[k]],
+                         ["plant_config.contact_model"])
+
+    def test_station_builds_and_steps(self):
+        station = build_station(self.scenario, self.obj, ik=self.ik, X_WG=None)
+        plant = station.plant
+        self.assertEqual(plant.time_step(), 0.0005)
+        self.assertEqual(plant.get_discrete_contact_approximation(),
+                         DiscreteContactApproximation.kSap)
+        self.assertTrue(plant.HasFrameNamed("camera_mount"))
+        simulator = initialize(station, self.scenario)
+        simulator.AdvanceTo(0.02)
+        # The object settles in the palm: it has moved by under a centimetre.
+        X_WO = plant.EvalBodyPoseInWorld(
+            plant.GetMyContextFromRoot(simulator.get_context()),
+            station.object_body)
+        self.assertLess(np.linalg.norm(
+            X_WO.translation() - station.X_WO_initial.translation()), 0.01)
+
+    def test_station_builds_with_the_network(self):
+        station = build_station(self.scenario, self.obj, ik=self.ik,
+                                X_WG=RigidTransform([0.8, 0.0, 0.7]),
+                                mlp_features=[-3.8, 0.0, 0.0, 0.05, 0.0])
+        self.assertTrue(station.diagram.HasSubsystemNamed("mlp"))
 
 
 if __name__ == "__main__":
