@@ -63,7 +63,8 @@ class ReplayTest(Row2Fixture, unittest.TestCase):
                 self.scenario, self.obj, self.ik, self.plan.X_WG,
                 self.params, self.t_fork, timer)
         self.assertIs(CatchStateMachine._update, original)
-        dt, period = self.scenario.plant_config.time_step, self.scenario.sensors.period_s
+        dt = self.scenario.plant_config.time_step
+        period = self.scenario.sensors.period_s
         tail_s = self.episode.sim_time_s - self.t_fork
         self.assertEqual(timer.calls["catch state machine"],
                          round(tail_s / dt) + 1)
