@@ -10,11 +10,13 @@ entries) is kept and resumed by the next run.
 """
 
 import argparse
+import contextlib
 import io
 import json
 import os
 import signal
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -34,7 +36,38 @@ def _add_object_args(p: argparse.ArgumentParser) -> None:
 
 def _add_scenario_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenario", metavar="F", type=Path,
-                   help="a scenario YAML file (default: the shipped defaults)")
+                   help="a scenario YAML file; with --scenario-name, a file "
+                        "of named scenarios (default: "
+                        "regrasp_drake/scenarios.yaml)")
+    p.add_argument("--scenario-name", metavar="NAME",
+                   help="a scenario of the named scenarios' file (default: "
+                        "Default)")
+    p.add_argument("--scenario-text", metavar="YAML",
+                   help="fields that replace the scenario's, e.g. "
+                        "'{catch: {return_s: 0.4}}'")
+
+
+@contextlib.contextmanager
+def _resolved_scenario(args):
+    """With --scenario-name or --scenario-text, the scenario they make is
+    loaded (refused before any work) and written to a temporary file that
+    --scenario then names for the command and its workers;
+    args.scenario_label says how it was given."""
+    name = getattr(args, "scenario_name", None)
+    text = getattr(args, "scenario_text", None)
+    if name is None and text is None:
+        yield
+        return
+    from regrasp_drake.station.scenario import load_scenario, scenario_yaml
+    scenario = load_scenario(args.scenario, name=name, text=text)
+    given = [("--scenario", args.scenario and args.scenario.resolve()),
+             ("--scenario-name", name), ("--scenario-text", text)]
+    args.scenario_label = " ".join(f"{flag} {value}" for flag, value in given
+                                   if value is not None)
+    with tempfile.TemporaryDirectory(prefix="regrasp-scenario-") as d:
+        args.scenario = Path(d) / "scenario.yaml"
+        args.scenario.write_text(scenario_yaml(scenario))
+        yield
 
 
 class _InOutDir:
@@ -144,7 +177,8 @@ def _scenario_and_object(args):
     obj = resolve_object(name=args.object, file=args.object_file)
     source = (str(args.object_file.resolve()) if args.object_file
               else "catalogue")
-    label = str(args.scenario.resolve()) if args.scenario else "defaults"
+    label = getattr(args, "scenario_label", None) or (
+        str(args.scenario.resolve()) if args.scenario else "defaults")
     return scenario, obj, source, label
 
 
@@ -899,7 +933,8 @@ def main(argv=None) -> int:
         _check_outputs(args)
         if getattr(args, "out_dir", None) is not None:
             args.out_dir.mkdir(parents=True, exist_ok=True)
-        return args.func(args)
+        with _resolved_scenario(args):
+            return args.func(args)
     except InputError as e:
         # One line whatever the message holds, and never a huge one.
         message = " ".join(str(e).split())

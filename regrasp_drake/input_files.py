@@ -133,6 +133,45 @@ _Loader.add_implicit_resolver(
     list("-+0123456789."))
 
 
+class Tagged(dict):
+    """A YAML mapping under a local tag (`!Rpy {deg: [90, 0, 0]}`): how
+    Drake's schema types (a rotation, a distribution) are written in model
+    directives. `tag` is the tag's name without the `!`."""
+
+    def __init__(self, tag: str, items=()):
+        super().__init__(items)
+        self.tag = tag
+
+
+class _TaggedLoader(_Loader):
+    """_Loader that also reads local tags on mappings as Tagged."""
+
+
+def _construct_tagged(loader, suffix, node):
+    if not isinstance(node, yaml.MappingNode):
+        raise _refusal(node.start_mark, f"tag !{quote(suffix)[1:-1]} on a "
+                       "single value or a list, expected it on a mapping")
+    return Tagged(suffix, loader.construct_mapping(node, deep=True))
+
+
+_TaggedLoader.add_multi_constructor("!", _construct_tagged)
+
+
+class _TaggedDumper(yaml.SafeDumper):
+    """PyYAML's safe dumper that writes Tagged mappings with their tag."""
+
+
+_TaggedDumper.add_representer(
+    Tagged, lambda dumper, data: dumper.represent_mapping(f"!{data.tag}",
+                                                          dict(data)))
+
+
+def dump_yaml(data) -> str:
+    """`data` as YAML text, Tagged mappings with their tag (parse_yaml reads
+    them back with tags=True)."""
+    return yaml.dump(data, Dumper=_TaggedDumper, sort_keys=False)
+
+
 def _refusal(mark, message: str) -> InputError:
     where = f"line {mark.line + 1}: " if mark is not None else ""
     return InputError(where + message)
@@ -171,11 +210,12 @@ def _check_expansion(root) -> None:
         size(root, 0)
 
 
-def parse_yaml(text: str):
+def parse_yaml(text: str, tags: bool = False):
     """The YAML document `text`, parsed within the module's limits;
-    InputError (one line, starting with the line number where known)."""
+    InputError (one line, starting with the line number where known).
+    tags: read local tags on mappings (Tagged) instead of refusing them."""
     try:
-        data = yaml.load(text, Loader=_Loader)
+        data = yaml.load(text, Loader=_TaggedLoader if tags else _Loader)
     except yaml.MarkedYAMLError as e:
         mark = e.problem_mark or e.context_mark
         where = (f" at line {mark.line + 1}, column {mark.column + 1}"
@@ -191,10 +231,10 @@ def parse_yaml(text: str):
     return data
 
 
-def load_yaml(path, what: str = "YAML file"):
+def load_yaml(path, what: str = "YAML file", tags: bool = False):
     """The YAML file at path, read (read_text) and parsed (parse_yaml);
     InputError naming the path."""
-    return _load(path, what, parse_yaml)
+    return _load(path, what, lambda text: parse_yaml(text, tags=tags))
 
 
 def _load(path, what: str, parse):

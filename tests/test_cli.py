@@ -71,6 +71,32 @@ class TestCli(unittest.TestCase):
         self.assertEqual(result.returncode, 2)
         self.assertIn("sensors.levels", result.stderr)
 
+    def test_every_command_of_a_scenario_takes_its_name_and_text(self):
+        from regrasp_drake import cli
+        commands = {name: sub for action in cli.make_parser()._actions
+                    if isinstance(action, cli.argparse._SubParsersAction)
+                    for name, sub in action.choices.items()}
+        with_scenario = [name for name, sub in commands.items()
+                         if "--scenario" in sub._option_string_actions]
+        self.assertGreaterEqual(len(with_scenario), 8)
+        for name in with_scenario:
+            with self.subTest(name):
+                flags = commands[name]._option_string_actions
+                self.assertIn("--scenario-name", flags)
+                self.assertIn("--scenario-text", flags)
+
+    def test_bad_scenario_name_or_text_refused_in_one_line(self):
+        for args, expected in (
+                (["--scenario-text", "{catch: {return_s: 9}}"],
+                 "with --scenario-text: catch.return_s: got 9"),
+                (["--scenario-name", "Nope"], "--scenario-name: got 'Nope'")):
+            result = _run("catch", "--object", "table1-row2", "--h-catch",
+                          "0.2", "--h-down", "-0.05", *args)
+            with self.subTest(args):
+                self.assertEqual(result.returncode, 2)
+                self.assertEqual(len(result.stderr.strip().splitlines()), 1)
+                self.assertIn(expected, result.stderr)
+
     def test_two_first_throw_modes_refused_together(self):
         for command in ("learn", "table1"):
             args = ["--object", "table1-row2"] if command == "learn" else []

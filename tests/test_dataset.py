@@ -150,7 +150,7 @@ class GenerateTest(unittest.TestCase):
                 self.assertEqual(features.tolist(), [
                     plan["features"][k] for k in FEATURE_NAMES])
         provenance = json.loads((out / "provenance.json").read_text())
-        self.assertIn("time_step_s", provenance["scenario"])
+        self.assertIn("plant_config", provenance["scenario"])
         # The run records the kernels it computed with (numerics.py): this
         # test process is pinned, so no AVX-512 kernels.
         from regrasp_drake import numerics

@@ -24,14 +24,14 @@ class ReplayTest(Row2Fixture, unittest.TestCase):
         (cls.u_arm, cls.u_hand, cls.x, cls.x_end,
          cls.p_WO_end) = episode_benchmark.record_plant_inputs(
             cls.scenario, cls.obj, cls.ik, cls.plan.X_WG, cls.params)
-        cls.k_fork = round(cls.t_fork / cls.scenario.time_step_s)
+        cls.k_fork = round(cls.t_fork / cls.scenario.plant_config.time_step)
 
     def test_recording_run_is_the_episode(self):
         """Stepping the episode to read the plant's inputs changes nothing:
         it ends where run_episode ends, at the same time."""
         self.assertEqual(self.episode.outcome, "caught")
         self.assertEqual(self.p_WO_end, self.episode.p_WO_final)
-        steps = round(self.episode.sim_time_s / self.scenario.time_step_s)
+        steps = round(self.episode.sim_time_s / self.scenario.plant_config.time_step)
         self.assertEqual(len(self.u_arm), steps + 1)
 
     def test_replay_ends_in_the_episodes_state(self):
@@ -63,7 +63,8 @@ class ReplayTest(Row2Fixture, unittest.TestCase):
                 self.scenario, self.obj, self.ik, self.plan.X_WG,
                 self.params, self.t_fork, timer)
         self.assertIs(CatchStateMachine._update, original)
-        dt, period = self.scenario.time_step_s, self.scenario.sensors.period_s
+        dt = self.scenario.plant_config.time_step
+        period = self.scenario.sensors.period_s
         tail_s = self.episode.sim_time_s - self.t_fork
         self.assertEqual(timer.calls["catch state machine"],
                          round(tail_s / dt) + 1)

@@ -33,17 +33,17 @@ from pathlib import Path
 import numpy as np
 import torch
 import yaml
-from pydrake.common.yaml import yaml_dump_typed
 
 from regrasp_drake.errors import InputError
 from regrasp_drake.grid import read_rows
+from regrasp_drake.input_files import dump_yaml, parse_yaml
 from regrasp_drake.learning.dataset import _read_plan, load_provenance, load_samples
 from regrasp_drake.learning.flight_predictor import FlightPredictor, dataset_flights
 from regrasp_drake.learning.library import load_library
 from regrasp_drake.learning.search import load_prior_maps
 from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.station.mlp_system import load_weights
-from regrasp_drake.station.scenario import Scenario, load_scenario
+from regrasp_drake.station.scenario import Scenario, load_scenario, scenario_yaml
 from regrasp_drake.world.objects import CATALOGUE_PATH, load_catalogue, load_object_file
 
 REPO = Path(__file__).parents[1]
@@ -66,7 +66,8 @@ def _object_seed() -> dict:
 
 
 def _scenario_seed() -> dict:
-    return yaml.safe_load(yaml_dump_typed(Scenario(), schema=Scenario))
+    # Tagged: the directives' rotations (!Rpy).
+    return parse_yaml(scenario_yaml(Scenario()), tags=True)
 
 
 def _library_seed() -> dict:
@@ -212,6 +213,14 @@ _UNSERIALIZABLE = "{unserializable: [\n"  # a syntax error, fine as a mutant
 def _dump(tree) -> str:
     try:
         return yaml.safe_dump(tree, sort_keys=False)
+    except (yaml.YAMLError, RecursionError, ValueError):
+        return _UNSERIALIZABLE
+
+
+def _dump_tagged(tree) -> str:
+    """_dump, Tagged mappings with their tag."""
+    try:
+        return dump_yaml(tree)
     except (yaml.YAMLError, RecursionError, ValueError):
         return _UNSERIALIZABLE
 
@@ -427,7 +436,7 @@ class Format:
 _MODEL = dict(count=MUTANTS_PER_MODEL_FORMAT)
 FORMATS = {
     "object file": Format(_object_seed, load_object_file),
-    "scenario": Format(_scenario_seed, load_scenario),
+    "scenario": Format(_scenario_seed, load_scenario, _dump_tagged),
     "library": Format(_library_seed, load_library),
     "samples": Format(_samples_seed, lambda path: load_samples(path.parent),
                       _dump_csv, "samples.csv", **_MODEL),

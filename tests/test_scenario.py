@@ -5,13 +5,24 @@ import tempfile
 import unittest
 from pathlib import Path
 
+import numpy as np
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import DiscreteContactApproximation
+
 from regrasp_drake.errors import InputError
+from regrasp_drake.input_files import parse_yaml
+from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.scenario import (
     Scenario,
     check_catch_parameters,
     load_scenario,
     scenario_digest,
+    scenario_yaml,
 )
+from regrasp_drake.station.station import build_station, initialize
+from regrasp_drake.world.objects import load_catalogue
+
+TEST_SCENARIOS = Path(__file__).parent / "scenarios.yaml"
 
 
 class TestScenario(unittest.TestCase):
@@ -25,8 +36,11 @@ class TestScenario(unittest.TestCase):
         self.assertIsInstance(load_scenario(), Scenario)
 
     def test_partial_file_keeps_defaults(self):
-        s = self._load("time_step_s: 0.0005\ncontact:\n  friction_coefficient: 0.5\n")
-        self.assertEqual(s.time_step_s, 0.0005)
+        s = self._load("plant_config:\n  time_step: 0.0005\n"
+                       "contact:\n  friction_coefficient: 0.5\n")
+        self.assertEqual(s.plant_config.time_step, 0.0005)
+        self.assertEqual(s.plant_config.discrete_contact_approximation,
+                         Scenario().plant_config.discrete_contact_approximation)
         self.assertEqual(s.contact.friction_coefficient, 0.5)
         self.assertEqual(s.sensors.levels, Scenario().sensors.levels)
 
@@ -36,9 +50,12 @@ class TestScenario(unittest.TestCase):
 
     def test_out_of_range_refused_with_field(self):
         cases = {
-            "time_step_s: -1\n": "time_step_s",
-            "contact:\n  discrete_contact_approximation: tamsi\n":
-                "contact.discrete_contact_approximation",
+            "plant_config:\n  time_step: -1\n": "plant_config.time_step",
+            "plant_config:\n  discrete_contact_approximation: tamsi\n":
+                "plant_config.discrete_contact_approximation",
+            "plant_config:\n  contact_model: hydroelastic\n":
+                "plant_config.contact_model",
+            "sensors:\n  period_s: 0.0045\n": "sensors.period_s",
             "sensors:\n  approach_range_m: 0.2\n": "sensors.approach_range_m",
             "catch:\n  h_catch_m: 0.9\n": "catch.h_catch_m",
             "catch:\n  palm_across_com_fraction: 1.5\n":
@@ -56,7 +73,13 @@ class TestScenario(unittest.TestCase):
 
     def test_wrong_type_refused_with_field(self):
         cases = {
-            "time_step_s: fast\n": ("time_step_s", "a number"),
+            "plant_config:\n  time_step: fast\n":
+                ("plant_config.time_step", "a number"),
+            "plant_config:\n  time_stpe: 0.001\n":
+                ("plant_config.time_stpe", "time_step"),
+            "directives: 3\n": ("directives", "a list of mappings"),
+            "directives:\n- add_model: {name: 3}\n":
+                ("directives[0].add_model.name", "a string"),
             "catch:\n  move_to_grasp_s: soon\n":
                 ("catch.move_to_grasp_s", "a number"),
             "catch: 5\n": ("catch", "a mapping"),
@@ -83,7 +106,7 @@ class TestScenario(unittest.TestCase):
 
     def test_not_yaml_refused(self):
         with self.assertRaisesRegex(InputError, "not valid YAML at line 2, column 1"):
-            self._load("time_step_s: [unclosed\n")
+            self._load("plant_config: [unclosed\n")
 
     def test_empty_file_is_the_defaults(self):
         for text in ("", "# nothing changed\n"):
@@ -100,6 +123,55 @@ class TestScenario(unittest.TestCase):
         scenario.catch.return_s += 0.01
         self.assertNotEqual(digest, scenario_digest(scenario))
 
+    def test_old_names_still_read(self):
+        s = self._load("time_step_s: 0.0005\n"
+                       "contact:\n  discrete_contact_approximation: sap\n")
+        self.assertEqual(s.plant_config.time_step, 0.0005)
+        self.assertEqual(s.plant_config.discrete_contact_approximation, "sap")
+        self.assertEqual(s.time_step_s, 0.0005)
+        with self.assertRaisesRegex(InputError, "^\\S+: time_step_s: the old "
+                                    "name of plant_config.time_step"):
+            self._load("time_step_s: 0.0005\nplant_config: {time_step: 0.001}\n")
+
+    def test_default_is_the_named_default(self):
+        self.assertEqual(load_scenario(), Scenario())
+        self.assertEqual(load_scenario(name="Default"), Scenario())
+        self.assertEqual(len(Scenario().directives), 4)
+        self.assertNotEqual(load_scenario(text="{catch: {return_s: 0.4}}"),
+                            Scenario())
+
+    def test_named_scenarios_from_a_file(self):
+        text = ("A: {catch: {return_s: 0.4}}\n"
+                "B:\n  plant_config: {time_step: 0.0005}\n")
+        with tempfile.TemporaryDirectory() as d:
+            path = Path(d) / "named.yaml"
+            path.write_text(text)
+            self.assertEqual(load_scenario(path, name="A").catch.return_s, 0.4)
+            b = load_scenario(path, name="B")
+            self.assertEqual(b.plant_config.time_step, 0.0005)
+            self.assertEqual(b.catch.return_s, Scenario().catch.return_s)
+            with self.assertRaisesRegex(InputError,
+                                        r"^--scenario-name: got 'C', .*'A'"):
+                load_scenario(path, name="C")
+
+    def test_scenario_text_overrides_one_field(self):
+        s = load_scenario(text="{catch: {return_s: 0.4}, "
+                               "plant_config: {time_step: 0.0005}}")
+        self.assertEqual(s.catch.return_s, 0.4)
+        self.assertEqual(s.plant_config.time_step, 0.0005)
+        # The other fields of the sections it names keep their values.
+        self.assertEqual(s.catch.h_catch_m, Scenario().catch.h_catch_m)
+        self.assertEqual(s.plant_config.contact_model, "point")
+        for text, field in (("{catch: {return_s: 9}}", "catch.return_s"),
+                            ("{catch: {retrun_s: 0.4}}", "catch.retrun_s"),
+                            ("{catch: [", "not valid YAML")):
+            with self.subTest(text):
+                with self.assertRaises(InputError) as e:
+                    load_scenario(text=text)
+                self.assertIn(field, str(e.exception))
+                self.assertIn("--scenario-text", str(e.exception))
+                self.assertEqual(len(str(e.exception).splitlines()), 1)
+
     def test_parameter_space(self):
         check_catch_parameters(0.40, -0.14)
         check_catch_parameters(0.0, 0.0)
@@ -109,6 +181,56 @@ class TestScenario(unittest.TestCase):
                                        (float("nan"), -0.05, "h_catch_m")):
             with self.assertRaisesRegex(InputError, field):
                 check_catch_parameters(h_catch, h_down)
+
+
+def _leaves(tree, prefix=""):
+    """{dotted field: value} of a parsed scenario, lists as one value."""
+    if isinstance(tree, dict) and not prefix.endswith("directives"):
+        return {k: v for key, item in tree.items()
+                for k, v in _leaves(item, f"{prefix}.{key}" if prefix
+                                    else key).items()}
+    return {prefix: tree}
+
+
+class OneOfEverythingTest(unittest.TestCase):
+    """A scenario with every field away from its default and a directive
+    list of its own (tests/scenarios.yaml) loads, and the station builds
+    and steps from it."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.scenario = load_scenario(TEST_SCENARIOS, name="OneOfEverything")
+        cls.obj = load_catalogue()["table1-row2"]
+        cls.ik = ArmIk()
+
+    def test_every_field_away_from_its_default(self):
+        ours = _leaves(parse_yaml(scenario_yaml(self.scenario), tags=True))
+        default = _leaves(parse_yaml(scenario_yaml(Scenario()), tags=True))
+        self.assertEqual(ours.keys(), default.keys())
+        self.assertEqual([k for k in ours if ours[k] == default[k]],
+                         ["plant_config.contact_model"])
+
+    def test_station_builds_and_steps(self):
+        station = build_station(self.scenario, self.obj, ik=self.ik, X_WG=None)
+        plant = station.plant
+        self.assertEqual(plant.time_step(), 0.0005)
+        self.assertEqual(plant.get_discrete_contact_approximation(),
+                         DiscreteContactApproximation.kSap)
+        self.assertTrue(plant.HasFrameNamed("camera_mount"))
+        simulator = initialize(station, self.scenario)
+        simulator.AdvanceTo(0.02)
+        # The object settles in the palm: it has moved by under a centimetre.
+        X_WO = plant.EvalBodyPoseInWorld(
+            plant.GetMyContextFromRoot(simulator.get_context()),
+            station.object_body)
+        self.assertLess(np.linalg.norm(
+            X_WO.translation() - station.X_WO_initial.translation()), 0.01)
+
+    def test_station_builds_with_the_network(self):
+        station = build_station(self.scenario, self.obj, ik=self.ik,
+                                X_WG=RigidTransform([0.8, 0.0, 0.7]),
+                                mlp_features=[-3.8, 0.0, 0.0, 0.05, 0.0])
+        self.assertTrue(station.diagram.HasSubsystemNamed("mlp"))
 
 
 if __name__ == "__main__":

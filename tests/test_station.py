@@ -4,7 +4,6 @@ limits, the state machine's phases and the grasp monitor's verdicts.
 Episodes are simulated once per class (a few seconds each) and shared.
 """
 
-import dataclasses as dc
 import os
 import re
 import tempfile
@@ -89,7 +88,8 @@ class TestWatchedFlight(unittest.TestCase):
         to the step (conservation in the limit)."""
         drift = _momentum_drift(self.first.logs, self.obj, self.scenario)
         self.assertLess(drift, 5e-4)
-        fine = dc.replace(self.scenario, time_step_s=self.scenario.time_step_s / 4)
+        dt = self.scenario.plant_config.time_step
+        fine = load_scenario(text=f"{{plant_config: {{time_step: {dt / 4}}}}}")
         fine_drift = _momentum_drift(watch(fine, self.obj, self.ik).logs,
                                      self.obj, fine)
         self.assertGreater(drift / fine_drift, 3.0)

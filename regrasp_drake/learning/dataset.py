@@ -59,7 +59,6 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from pydrake.common.yaml import yaml_dump_typed
 
 from regrasp_drake import grid, numerics
 from regrasp_drake.errors import InputError, field_error, quote
@@ -74,7 +73,7 @@ from regrasp_drake.parameter_space import (
 )
 from regrasp_drake.paths import REPO_DIR
 from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.station.scenario import Scenario, load_scenario
+from regrasp_drake.station.scenario import load_scenario, scenario_yaml
 from regrasp_drake.throw_catch import plan_catches, watch
 from regrasp_drake.world.objects import (
     CATALOGUE_PATH,
@@ -242,7 +241,7 @@ def generate(names: list[str], out_dir: Path, *, workers: int = 1,
 
 def scenario_text(scenario_path=None) -> str:
     """The scenario as the data set records it (its every value, YAML)."""
-    return yaml_dump_typed(load_scenario(scenario_path), schema=Scenario)
+    return scenario_yaml(load_scenario(scenario_path))
 
 
 def check_same_scenario(out_dir: Path, scenario_path=None) -> None:
@@ -271,12 +270,13 @@ def check_same_scenario(out_dir: Path, scenario_path=None) -> None:
         return
     if stored != current:
         try:
-            a = parse_yaml(stored)
+            a = parse_yaml(stored, tags=True)
         except InputError as e:
             raise InputError(f"--out: {out_dir}: the data set's scenario is "
                              f"{e}") from None
         a = a if isinstance(a, dict) else {}
-        field, old, new = _first_difference(a, parse_yaml(current) or {})
+        field, old, new = _first_difference(
+            a, parse_yaml(current, tags=True) or {})
         raise InputError(
             f"--scenario: {field} is {new!r} here but {old!r} in the data set "
             f"in {out_dir} (computed with another scenario), expected the "

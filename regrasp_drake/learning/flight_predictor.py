@@ -270,7 +270,7 @@ def flight_from_release(state, t0, obj, scenario):
     that velocity (measured: the plan from it is within 0.5 mm of the plan
     from the whole watched flight, on the five Table 1 objects)."""
     state = np.asarray(state, float).copy()
-    state[10:13] += 0.5 * scenario.time_step_s * np.array(
+    state[10:13] += 0.5 * scenario.plant_config.time_step * np.array(
         [0.0, 0.0, -scenario.gravity_m_per_s2])
     return _as_watched(*_flight(state, t0, obj, scenario))
 

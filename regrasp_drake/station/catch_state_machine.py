@@ -229,7 +229,7 @@ class CatchStateMachine(LeafSystem):
         self._acc_ref = self.DeclareDiscreteState(a_arm)
         self._hand_ref = self.DeclareDiscreteState(
             np.concatenate(self._hand_reference(x0, 0.0)))
-        self._dt = scenario.time_step_s
+        self._dt = scenario.plant_config.time_step
         self._ticks_per_sample = round(scenario.sensors.period_s / self._dt)
         self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
 

@@ -1,42 +1,52 @@
 """The scenario: every physical constant of a throw-and-catch episode, with units.
 
-One typed dataclass tree, loaded from YAML with pydrake's `yaml_load_typed`
-(unknown keys and values of the wrong type are refused first, naming the
-field: `check_schema`), then range-checked field by field.
-The defaults below are the shipped scenario; a scenario file need only name
-the fields it changes.
+One typed dataclass tree, as Drake's hardware_sim example writes it: Drake's
+own `MultibodyPlantConfig` (`plant_config`) and the robot's model directives
+(`directives`) beside the project's fields. It is loaded from YAML with
+pydrake's `yaml_load_typed` (unknown keys and values of the wrong type are
+refused first, naming the field: `check_schema`), then range-checked field
+by field. The defaults below are the shipped scenario; a scenario need only
+name the fields it changes.
 
-Bounds (`validate`): each field's range is in validate; and for every field,
-whatever its section: every number finite; every arm joint angle (a list of
-6 named `*_q_rad`, or a list of such lists) within the PUMA 560's joint
-limits read from sdf/puma560.sdf (`arm_joint_limits`); the throw's knot
-times increasing from 0, at most 10 s. The file is read within the limits
-of regrasp_drake/input_files.py (size, nesting, aliases, duplicate keys);
-`1e5` is a number.
+Named scenarios live in one YAML file (SCENARIOS_PATH: name -> scenario);
+`load_scenario` reads a plain scenario file, or a name from such a file,
+then merges YAML text over it (`--scenario-text '{catch: {return_s: 0.4}}'`).
+
+Bounds (`validate`): each field of the project's range is in validate, and
+of `plant_config` what the station relies on (the time step's range, point
+contact, an approximation that converges on throw impacts); and for every
+field of the project, whatever its section: every number finite; every arm
+joint angle (a list of 6 named `*_q_rad`, or a list of such lists) within
+the PUMA 560's joint limits read from sdf/puma560.sdf (`arm_joint_limits`);
+the throw's knot times increasing from 0, at most 10 s. The file is read
+within the limits of regrasp_drake/input_files.py (size, nesting, aliases,
+duplicate keys); `1e5` is a number; Drake's tags (`!Rpy {deg: [...]}`) are
+read in the directives.
 """
 
 import dataclasses as dc
 import hashlib
-import json
 import math
 import re
 import typing
 from pathlib import Path
 
-import yaml
-from pydrake.common.yaml import yaml_load_typed
+from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
+from pydrake.multibody.parsing import ModelDirective
+from pydrake.multibody.plant import MultibodyPlantConfig
 
 from regrasp_drake.errors import InputError, field_error, quote
-from regrasp_drake.input_files import load_yaml
+from regrasp_drake.input_files import Tagged, dump_yaml, load_yaml, parse_yaml
 from regrasp_drake.parameter_space import H_CATCH_RANGE, H_DOWN_RANGE
-from regrasp_drake.world.robot import arm_joint_limits
+from regrasp_drake.world.robot import arm_joint_limits, robot_directives
+
+# The named scenarios (name -> scenario), and the one used by default.
+SCENARIOS_PATH = Path(__file__).resolve().parents[1] / "scenarios.yaml"
+DEFAULT_SCENARIO_NAME = "Default"
 
 
 @dc.dataclass
 class ContactConfig:
-    # Discrete contact solver: "sap" or "similar" or "lagged" (TAMSI fails to
-    # converge on throw impacts, see shared/reference/hand-and-drake.md).
-    discrete_contact_approximation: str = "similar"
     # Coulomb friction coefficient (static = dynamic) of every surface, [-].
     friction_coefficient: float = 0.9
     # Point-contact stiffness of the object's surfaces, [N/m].
@@ -243,10 +253,27 @@ class MonitorConfig:
     max_time_s: float = 4.0
 
 
-@dc.dataclass
+def _plant_config() -> MultibodyPlantConfig:
+    return MultibodyPlantConfig(time_step=0.001, contact_model="point",
+                                discrete_contact_approximation="similar")
+
+
+@dc.dataclass(eq=False)
 class Scenario:
-    # Time step of the discrete MultibodyPlant, [s].
-    time_step_s: float = 0.001
+    # The discrete MultibodyPlant (Drake's MultibodyPlantConfig): time_step
+    # [s]; contact_model "point" (the object's stiffness and dissipation in
+    # `contact` are point contact's); discrete_contact_approximation "sap",
+    # "similar" or "lagged" (TAMSI failed to converge on throw impacts);
+    # Drake's other settings at Drake's defaults.
+    plant_config: MultibodyPlantConfig = dc.field(default_factory=_plant_config)
+    # The robot's model directives (default: sdf/puma560_hand.dmd.yaml, the
+    # PUMA welded to the world, the hand to its flange); they must add the
+    # models "puma560" and "hand". The arm's inverse-dynamics and inverse-
+    # kinematics plants are built from the shipped directives whatever these
+    # say: a list that moves the arm or the hand's mount is planned and
+    # controlled as the shipped robot.
+    directives: list[ModelDirective] = dc.field(
+        default_factory=robot_directives)
     # Gravity's magnitude, pointing along -z, [m/s²].
     gravity_m_per_s2: float = 9.81
     contact: ContactConfig = dc.field(default_factory=ContactConfig)
@@ -255,6 +282,16 @@ class Scenario:
     sensors: SensorConfig = dc.field(default_factory=SensorConfig)
     catch: CatchConfig = dc.field(default_factory=CatchConfig)
     monitor: MonitorConfig = dc.field(default_factory=MonitorConfig)
+
+    @property
+    def time_step_s(self) -> float:
+        """Deprecated: plant_config.time_step, [s] (read only)."""
+        return self.plant_config.time_step
+
+    def __eq__(self, other) -> bool:
+        # Drake's config structs compare by identity: compare the values.
+        return (isinstance(other, Scenario)
+                and scenario_yaml(self) == scenario_yaml(other))
 
 
 _APPROXIMATIONS = ("sap", "similar", "lagged")
@@ -294,13 +331,17 @@ def _check_generic(value, field: str = "") -> None:
 def validate(s: Scenario) -> Scenario:
     """Checks every field's range; returns `s` or raises InputError."""
     _check_generic(s)
-    _in_range("time_step_s", s.time_step_s, 1e-5, 5e-3, " s")
+    dt = s.plant_config.time_step
+    _in_range("plant_config.time_step", dt, 1e-5, 5e-3, " s")
+    if s.plant_config.contact_model != "point":
+        raise field_error("plant_config.contact_model",
+                          s.plant_config.contact_model, "'point'")
+    if s.plant_config.discrete_contact_approximation not in _APPROXIMATIONS:
+        raise field_error("plant_config.discrete_contact_approximation",
+                          s.plant_config.discrete_contact_approximation,
+                          f"one of {_APPROXIMATIONS}")
     _in_range("gravity_m_per_s2", s.gravity_m_per_s2, 0.0, 30.0, " m/s²")
     c = s.contact
-    if c.discrete_contact_approximation not in _APPROXIMATIONS:
-        raise field_error("contact.discrete_contact_approximation",
-                          c.discrete_contact_approximation,
-                          f"one of {_APPROXIMATIONS}")
     for name, value, allowed in (("palm", c.palm, _PALMS),
                                  ("object_boxes", c.object_boxes,
                                   _OBJECT_BOXES)):
@@ -357,11 +398,11 @@ def validate(s: Scenario) -> Scenario:
         raise field_error("throw.noise.seed", t.noise.seed,
                           "an integer >= 0")
     n = s.sensors
-    _in_range("sensors.period_s", n.period_s, s.time_step_s, 0.05, " s")
-    ratio = n.period_s / s.time_step_s
+    _in_range("sensors.period_s", n.period_s, dt, 0.05, " s")
+    ratio = n.period_s / dt
     if abs(ratio - round(ratio)) > 1e-9 * ratio:
         raise field_error("sensors.period_s", n.period_s,
-                          f"a whole multiple of time_step_s = {s.time_step_s} s")
+                          f"a whole multiple of plant_config.time_step = {dt} s")
     _in_range("sensors.palm_range_m", n.palm_range_m, 0.01, 1.0, " m")
     _in_range("sensors.approach_range_m", n.approach_range_m, 0.40, 2.0, " m")
     _in_range("sensors.levels", n.levels, 2, 1e6)
@@ -407,53 +448,124 @@ def check_catch_parameters(h_catch, h_down,
     _in_range(names[1], h_down, *H_DOWN_RANGE, " m")
 
 
-def load_scenario(path: str | Path | None = None) -> Scenario:
-    """Loads and validates a scenario; None gives the shipped defaults."""
+def load_scenario(path: str | Path | None = None, *, name: str | None = None,
+                  text: str | None = None) -> Scenario:
+    """Loads and validates a scenario.
+
+    path: a scenario YAML file; with `name`, a file of named scenarios
+    (name -> scenario) to take `name` from. Without either, the shipped
+    default (DEFAULT_SCENARIO_NAME in SCENARIOS_PATH); `name` alone is one of
+    SCENARIOS_PATH. text: YAML text (a flow mapping, say) whose fields
+    replace the loaded scenario's, mappings merged key by key."""
     if path is None:
-        return validate(Scenario())
+        path, name = SCENARIOS_PATH, name or DEFAULT_SCENARIO_NAME
     path = Path(path)
     if not path.exists():
         raise field_error("--scenario", str(path), "an existing YAML file")
-    data = load_yaml(path, "YAML scenario file")
-    if data is None:  # an empty file (or only comments): the defaults
-        scenario = Scenario()
-    else:
+    where = str(path)
+    data = load_yaml(path, "YAML scenario file", tags=True)
+    if name is not None:
+        if not isinstance(data, dict) or name not in data:
+            names = list(data) if isinstance(data, dict) else []
+            raise field_error("--scenario-name", name,
+                              f"one of {names[:20]} (the scenarios in {path})")
+        data, where = data[name], f"{path}: {name}"
+    data = _checked(data, where)
+    if text is not None:
         try:
-            # The loader's own messages do not name the section of a field.
-            check_schema(data, Scenario, "")
+            override = parse_yaml(text, tags=True)
         except InputError as e:
-            raise InputError(f"{path}: {e}") from None
-        try:
-            # The data as parsed above (1e5 a number), not the file again.
-            scenario = yaml_load_typed(schema=Scenario,
-                                       data=yaml.safe_dump(data))
-        except Exception as e:  # pydrake: RuntimeError/TypeError/yaml errors.
-            first = (str(e).strip().splitlines()[0][:200] if str(e).strip()
-                     else repr(e))
-            raise InputError(f"{path}: {first}") from None
+            raise InputError(f"--scenario-text: {e}") from None
+        data = _merged(data, _checked(override, "--scenario-text"))
+        where += " with --scenario-text"
+    try:
+        # The data as parsed above (1e5 a number), not the file again.
+        scenario = yaml_load_typed(schema=Scenario, data=dump_yaml(data))
+    except Exception as e:  # pydrake: RuntimeError/TypeError/yaml errors.
+        first = (str(e).strip().splitlines()[0][:200] if str(e).strip()
+                 else repr(e))
+        raise InputError(f"{where}: {first}") from None
     try:
         return validate(scenario)
     except InputError as e:
-        raise InputError(f"{path}: {e}") from None
+        raise InputError(f"{where}: {e}") from None
+
+
+# Deprecated names of moved fields, still read: (section, old) -> new path.
+_ALIASES = {(None, "time_step_s"): ("plant_config", "time_step"),
+            ("contact", "discrete_contact_approximation"):
+                ("plant_config", "discrete_contact_approximation")}
+
+
+def _checked(data, where: str) -> dict:
+    """Parsed scenario YAML (None: an empty document, the defaults) with the
+    deprecated names moved to their fields, checked against the schema
+    (`check_schema`); InputError prefixed with `where`."""
+    if data is None:
+        return {}
+    try:
+        if isinstance(data, dict):
+            data = dict(data)
+            for (section, old), (new_section, new) in _ALIASES.items():
+                holder = data if section is None else data.get(section)
+                if not isinstance(holder, dict) or old not in holder:
+                    continue
+                if section is not None:
+                    holder = data[section] = dict(holder)
+                target = data.get(new_section)
+                target = data[new_section] = (
+                    dict(target) if isinstance(target, dict) else {})
+                if new in target:
+                    shown = f"{section}.{old}" if section else old
+                    raise InputError(f"{shown}: the old name of "
+                                     f"{new_section}.{new}, given with it")
+                target[new] = holder.pop(old)
+        # The loader's own messages do not name the section of a field.
+        check_schema(data, Scenario, "")
+    except InputError as e:
+        raise InputError(f"{where}: {e}") from None
+    return data
+
+
+def _merged(base: dict, override: dict) -> dict:
+    """`override`'s fields over `base`'s, mappings merged key by key."""
+    merged = dict(base)
+    for key, value in override.items():
+        old = merged.get(key)
+        if (isinstance(old, dict) and isinstance(value, dict)
+                and not isinstance(old, Tagged)
+                and not isinstance(value, Tagged)):
+            value = _merged(old, value)
+        merged[key] = value
+    return merged
+
+
+def scenario_yaml(scenario: Scenario) -> str:
+    """Every value of the scenario, as YAML."""
+    return yaml_dump_typed(scenario, schema=Scenario)
 
 
 def scenario_digest(scenario: Scenario) -> str:
     """A short sha256 of every value of the scenario: equal digests, same throw
     and same catch machinery."""
-    text = json.dumps(dc.asdict(scenario), sort_keys=True)
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
+    return hashlib.sha256(scenario_yaml(scenario).encode()).hexdigest()[:16]
 
 
 def check_schema(value, schema, field: str) -> None:
     """Checks parsed YAML `value` against the type `schema` (a dataclass,
     float, int, str or list of them) before pydrake's loader reads it: an
     unknown key or a value of the wrong type raises the InputError that
-    names the field (dotted from the top, `field` being this value's)."""
-    if dc.is_dataclass(schema):
+    names the field (dotted from the top, `field` being this value's).
+    Drake's structs (MultibodyPlantConfig, the directives) are checked
+    likewise; what this does not know (a tagged value, a union, a mapping
+    of names) is left to pydrake's loader."""
+    if isinstance(value, Tagged):
+        return
+    hints = _fields(schema)
+    if hints is not None:
         if not isinstance(value, dict):
             raise field_error(field or "the scenario", value,
                               "a mapping of field: value")
-        hints = typing.get_type_hints(schema)
         for key, item in value.items():
             if key not in hints:
                 shown = (key if isinstance(key, str) and len(key) <= 64
@@ -470,8 +582,22 @@ def check_schema(value, schema, field: str) -> None:
             raise field_error(field, value, _type_name(schema))
         for i, item in enumerate(value):
             check_schema(item, inner, f"{field}[{i}]")
-    elif not _is_a(value, schema):
+    elif typing.get_origin(schema) is typing.Union:
+        kinds = [k for k in typing.get_args(schema) if k is not type(None)]
+        if value is not None and len(kinds) == 1:
+            check_schema(value, kinds[0], field)
+    elif schema in (float, int, str, bool) and not _is_a(value, schema):
         raise field_error(field, value, _type_name(schema))
+
+
+def _fields(schema) -> dict | None:
+    """The fields (name -> type) of a dataclass or of a pydrake struct, or
+    None for another type."""
+    if dc.is_dataclass(schema):
+        return typing.get_type_hints(schema)
+    if isinstance(schema, type) and hasattr(schema, "__fields__"):
+        return {f.name: f.type for f in schema.__fields__}
+    return None
 
 
 def _is_a(value, kind) -> bool:
@@ -490,4 +616,7 @@ def _type_name(kind, plural: bool = False) -> str:
                 + _type_name(inner, plural=True))
     names = {float: ("a number", "numbers"), int: ("an integer", "integers"),
              str: ("a string", "strings"), bool: ("true or false", "booleans")}
+    if _fields(kind) is not None:
+        return ("mappings of field: value" if plural
+                else "a mapping of field: value")
     return names.get(kind, (str(kind), str(kind)))[plural]

@@ -28,7 +28,6 @@ from pydrake.multibody.plant import (
     AddMultibodyPlant,
     CoulombFriction,
     MultibodyPlant,
-    MultibodyPlantConfig,
 )
 from pydrake.systems.analysis import InitializeParams, Simulator
 from pydrake.systems.controllers import InverseDynamicsController
@@ -234,16 +233,14 @@ def build_station(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
 
 
 def add_world(builder: DiagramBuilder, scenario: Scenario, obj: ObjectSpec):
-    """Adds the physics to `builder`: a discrete MultibodyPlant (point
-    contact, no air drag) with PUMA + hand welded to the world, the object a
+    """Adds the physics to `builder`: the scenario's discrete MultibodyPlant
+    (point contact, no air drag) with the robot of its directives (PUMA +
+    hand welded to the world), the object a
     free body with the scenario's contact properties, the ground, gravity;
     finalized, robot self-collisions filtered. Returns (plant, scene_graph,
     robot instances, object body, the object's collision geometry ids)."""
-    plant, scene_graph = AddMultibodyPlant(MultibodyPlantConfig(
-        time_step=scenario.time_step_s, contact_model="point",
-        discrete_contact_approximation=(
-            scenario.contact.discrete_contact_approximation)), builder)
-    instances = robot.add_puma_and_hand(plant)
+    plant, scene_graph = AddMultibodyPlant(scenario.plant_config, builder)
+    instances = robot.add_puma_and_hand(plant, scenario.directives)
     friction = CoulombFriction(scenario.contact.friction_coefficient,
                                scenario.contact.friction_coefficient)
     object_body = add_object(

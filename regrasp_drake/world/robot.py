@@ -3,8 +3,8 @@
 The models live in the repository's `sdf/` folder (package `regrasp_drake`):
 `puma560.sdf` (standard-DH link frames, published masses and inertias, the paper's
 servo torque limits), `hand.sdf` (10-DOF hand, in-plant PD finger servos) and
-`puma560_hand.dmd.yaml` (arm welded to the world, palm welded to link6).
-See `sdf/README.md` for sources and choices.
+`puma560_hand.dmd.yaml` (arm welded to the world, palm welded to link6: the
+scenario's default `directives`). See `sdf/README.md` for sources and choices.
 """
 
 import functools
@@ -17,6 +17,8 @@ from pydrake.geometry import CollisionFilterDeclaration, GeometrySet, SceneGraph
 from pydrake.math import RigidTransform
 from pydrake.multibody.parsing import (
     LoadModelDirectives,
+    ModelDirective,
+    ModelDirectives,
     Parser,
     ProcessModelDirectives,
 )
@@ -113,13 +115,22 @@ def add_hand(
     return hand
 
 
-def add_puma_and_hand(plant: MultibodyPlant) -> RobotInstances:
-    """Adds the PUMA welded to the world and the hand welded to its link6.
+def robot_directives() -> list[ModelDirective]:
+    """The shipped robot's model directives, sdf/puma560_hand.dmd.yaml (the
+    hand mount transform lives there)."""
+    return list(LoadModelDirectives(str(ROBOT_DIRECTIVES)).directives)
 
-    Reads sdf/puma560_hand.dmd.yaml (the hand mount transform lives there).
-    """
-    directives = LoadModelDirectives(str(ROBOT_DIRECTIVES))
-    ProcessModelDirectives(directives, plant, _parser(plant))
+
+def add_puma_and_hand(
+    plant: MultibodyPlant, directives: list[ModelDirective] | None = None
+) -> RobotInstances:
+    """Adds the robot by its model directives (default: robot_directives(),
+    the PUMA welded to the world and the hand welded to its link6), which
+    must add the models "puma560" and "hand"."""
+    if directives is None:
+        directives = robot_directives()
+    ProcessModelDirectives(ModelDirectives(directives=directives), plant,
+                           _parser(plant))
     return RobotInstances(
         arm=plant.GetModelInstanceByName(ARM_MODEL_NAME),
         hand=plant.GetModelInstanceByName(HAND_MODEL_NAME),
