@@ -107,7 +107,7 @@ class BadInputTest(RefusalAssertions, unittest.TestCase):
                            "sensors.period_s")
 
     def test_step_out_of_range_and_unknown_object_refused(self):
-        self.assertRefused(["--steps-ms", "7"], "time_step_s: got 0.007")
+        self.assertRefused(["--steps-ms", "7"], "plant_config.time_step: got 0.007")
         self.assertRefused(["--objects", "no-such-object"], "'no-such-object'")
 
     def test_bad_throw_step_refused_naming_the_flag(self):

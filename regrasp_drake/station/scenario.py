@@ -24,6 +24,7 @@ duplicate keys); `1e5` is a number; Drake's tags (`!Rpy {deg: [...]}`) are
 read in the directives.
 """
 
+import copy
 import dataclasses as dc
 import hashlib
 import math
@@ -538,6 +539,13 @@ def _merged(base: dict, override: dict) -> dict:
             value = _merged(old, value)
         merged[key] = value
     return merged
+
+
+def with_time_step(scenario: Scenario, time_step_s: float) -> Scenario:
+    """A validated copy of `scenario` whose plant steps by time_step_s."""
+    copied = copy.deepcopy(scenario)
+    copied.plant_config.time_step = float(time_step_s)
+    return validate(copied)
 
 
 def scenario_yaml(scenario: Scenario) -> str:

@@ -21,7 +21,6 @@ resumes); the summary goes to OUT/summary.json.
 # (regrasp_drake/numerics.py), so that results match across x86-64 machines.
 import regrasp_drake  # noqa: F401, I001 (first, see above)
 import argparse
-import dataclasses as dc
 import json
 import sys
 from pathlib import Path
@@ -32,7 +31,7 @@ from regrasp_drake.errors import InputError, check_output_path
 from regrasp_drake.grid import append_rows, read_rows
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.episode import release_time
-from regrasp_drake.station.scenario import load_scenario, validate
+from regrasp_drake.station.scenario import load_scenario, with_time_step
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world.objects import load_catalogue
 
@@ -63,7 +62,7 @@ def _task(args) -> dict:
     obj = load_catalogue()[name]
     ik = ArmIk()
     coarse_row = throw_at(scenario, obj, ik)
-    fine_row = throw_at(validate(dc.replace(scenario, time_step_s=fine)),
+    fine_row = throw_at(with_time_step(scenario, fine),
                         obj, ik)
     return {"object": name, "set": obj.set, "geometry": obj.geometry,
             "steps_s": [scenario.time_step_s, fine],
@@ -119,7 +118,7 @@ def main(argv=None) -> int:
     try:
         scenario = load_scenario(args.scenario)
         fine = args.fine_step_s or scenario.time_step_s / 4
-        validate(dc.replace(scenario, time_step_s=fine))
+        with_time_step(scenario, fine)
         catalogue = load_catalogue()
         names = args.objects or list(catalogue)
         for name in names:

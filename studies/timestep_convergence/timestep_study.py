@@ -68,24 +68,24 @@ def release_state(scenario, obj, logs) -> dict:
 
 
 def _scenario(step_ms, scenario_path=None):
-    import dataclasses as dc
-
-    from regrasp_drake.station.scenario import load_scenario, validate
-    return validate(dc.replace(load_scenario(scenario_path),
-                               time_step_s=step_ms / 1e3))
+    from regrasp_drake.station.scenario import load_scenario, with_time_step
+    return with_time_step(load_scenario(scenario_path), step_ms / 1e3)
 
 
 def claim_out_dir(out: Path, scenario_path=None) -> None:
-    """Records in <out>/scenario.json the scenario (all but time_step_s) the
+    """Records in <out>/scenario.json the scenario (all but the plant's time
+    step) the
     maps and flights in `out` come from, or refuses, naming --out and
     --scenario, a scenario other than the one recorded: the resumable files
     there are keyed by object, step and cell only, and would mix runs."""
-    import dataclasses as dc
-
     from regrasp_drake.errors import InputError
-    from regrasp_drake.station.scenario import load_scenario
-    fields = dc.asdict(load_scenario(scenario_path))
-    del fields["time_step_s"]
+    from regrasp_drake.station.scenario import (
+        load_scenario,
+        scenario_yaml,
+        with_time_step,
+    )
+    # The scenario's YAML at one fixed step (a string: it holds tags).
+    fields = scenario_yaml(with_time_step(load_scenario(scenario_path), 0.001))
     record = out / "scenario.json"
     if record.is_file():
         if json.loads(record.read_text()) != fields:
