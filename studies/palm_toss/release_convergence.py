@@ -58,7 +58,9 @@ def throw_at(scenario, obj, ik) -> dict:
 
 
 def _task(args) -> dict:
-    name, scenario, fine = args
+    # The scenario travels as its path (Drake's config structs do not pickle).
+    name, scenario_path, fine = args
+    scenario = load_scenario(scenario_path)
     obj = load_catalogue()[name]
     ik = ArmIk()
     coarse_row = throw_at(scenario, obj, ik)
@@ -136,7 +138,7 @@ def main(argv=None) -> int:
     except InputError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    todo = [(n, scenario, fine) for n in names if n not in done]
+    todo = [(n, args.scenario, fine) for n in names if n not in done]
     if todo:
         append_rows(_task, todo, rows_path, done, lambda r: r["object"],
                     workers=args.workers, label="objects", unit="object")
