@@ -23,9 +23,9 @@ from regrasp_drake.planning.catch_plan import (
     palm_poses_for,
 )
 from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station import throw
 from regrasp_drake.station.catch_state_machine import lowered_pose
 from regrasp_drake.station.episode import EpisodeResult, run_episode
-from regrasp_drake.station import throw
 from regrasp_drake.station.scenario import Scenario
 from regrasp_drake.world.objects import ObjectSpec
 

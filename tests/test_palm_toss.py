@@ -1,7 +1,6 @@
 """The palm toss (throw.kind: palm_toss): its motion, its scenario fields,
 the padded palm and rounded boxes, and a watched toss."""
 
-import dataclasses as dc
 import unittest
 from pathlib import Path
 

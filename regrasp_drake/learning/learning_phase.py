@@ -79,8 +79,8 @@ from regrasp_drake.planning.catch_plan import (
     catch_moments,
 )
 from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.station.episode import EpisodeResult, release_time, run_episode
 from regrasp_drake.station import throw
+from regrasp_drake.station.episode import EpisodeResult, release_time, run_episode
 from regrasp_drake.station.mlp_system import FEATURE_NAMES, CatchMlp, ParameterSpace
 from regrasp_drake.station.scenario import Scenario, scenario_digest
 from regrasp_drake.throw_catch import (

@@ -6,7 +6,8 @@ direction) at the same time; then it brakes harder than gravity, so the
 contacts unload together and the object leaves with the palm's velocity and
 angular velocity of that instant: the contact force falls continuously to
 zero, with no fingers for the object to roll across (how far that makes the
-release converge in the time step: studies/palm_toss/FINDINGS.md). The roll gives the object a designed spin about the palm's x,
+release converge in the time step: studies/palm_toss/FINDINGS.md). The roll
+gives the object a designed spin about the palm's x,
 so its symmetry axis (along the palm's y) turns end over end in flight and
 is horizontal again half a turn later: the catch is another grasp.
 

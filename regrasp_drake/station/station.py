@@ -10,7 +10,6 @@ the grasp monitor; loggers; Meshcat when asked.
 import dataclasses as dc
 import logging
 
-import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.geometry import (
     Box,
@@ -36,11 +35,11 @@ from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput
 
 from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station import throw
 from regrasp_drake.station.catch_state_machine import (
     CatchStateMachine,
     ThrowPerturbation,
 )
-from regrasp_drake.station import throw
 from regrasp_drake.station.grasp_monitor import GraspMonitor
 from regrasp_drake.station.mlp_system import MlpSystem, load_weights
 from regrasp_drake.station.scenario import Scenario

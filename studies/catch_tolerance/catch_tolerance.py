@@ -2,7 +2,8 @@
 predictor's error.
 
     .venv/bin/python studies/catch_tolerance/catch_tolerance.py
-        [--objects holdout-… …] [--library F [F …]] [--step-mm 10] [--reach-mm 40] [--workers 2]
+        [--objects holdout-… …] [--library F [F …]] [--step-mm 10]
+        [--reach-mm 40] [--workers 2]
         [--out studies/catch_tolerance/catch_tolerance]
 
 For each object: the watching throw and its plan (the palm's grasp pose

@@ -1,7 +1,8 @@
 """How much does a success map change under a tiny physical perturbation?
 
     .venv/bin/python studies/map_sensitivity/map_sensitivity.py
-        [--objects table1-row4 …] [--stds 1e-4 1e-3 1e-2] [--seeds 2] [--step-ms 1] [--workers 2]
+        [--objects table1-row4 …] [--stds 1e-4 1e-3 1e-2] [--seeds 2]
+        [--step-ms 1] [--workers 2]
         [--out studies/map_sensitivity/map_sensitivity]
 
 The companion of timestep_study.py. That study changes the plant's time step
