@@ -513,14 +513,14 @@ class InterruptTest(unittest.TestCase):
              "table1-row2", "--out", str(out), "--workers", "1"],
             stdout=subprocess.PIPE, stderr=subprocess.PIPE,
             start_new_session=True)
-        deadline = time.monotonic() + 60
+        deadline = time.monotonic() + 180
         while not (out.exists() and out.read_bytes().count(b"\n") >= rows):
             if process.poll() is not None or time.monotonic() > deadline:
                 process.kill()
                 self.fail(f"no {rows} rows: {process.communicate()[1]!r}")
             time.sleep(0.05)
         os.killpg(process.pid, signal.SIGINT)
-        stdout, stderr = process.communicate(timeout=30)
+        stdout, stderr = process.communicate(timeout=120)
         self.assertEqual(process.returncode, 130, stderr)
         lines = stderr.decode().strip().splitlines()
         self.assertEqual(len(lines), 1, stderr)
