@@ -2,7 +2,7 @@
 
     .venv/bin/python studies/map_sensitivity/map_sensitivity.py
         [--objects table1-row4 …] [--stds 1e-4 1e-3 1e-2] [--seeds 2]
-        [--step-ms 1] [--workers 2]
+        [--step-ms 1] [--scenario F] [--workers 2]
         [--out studies/map_sensitivity/map_sensitivity]
 
 The companion of timestep_study.py. That study changes the plant's time step
@@ -50,14 +50,19 @@ def _level_dir(out: Path, std: float, seed: int) -> Path:
     return out / (f"std{std:g}_seed{seed}" if std > 0 else "plain")
 
 
-def _write_scenario(directory: Path, std: float, seed: int) -> Path:
-    """The shipped scenario with only the release's joint-velocity noise
-    set; written beside the maps it made."""
+def _write_scenario(directory: Path, std: float, seed: int,
+                    base: Path | None = None) -> Path:
+    """The scenario at `base` (None: the shipped one) with only the
+    release's joint-velocity noise set; written beside the maps it made."""
+    import yaml
+    fields = yaml.safe_load(base.read_text()) if base else None
+    fields = fields or {}
+    fields.setdefault("throw", {})["noise"] = {
+        "joint_velocity_std_rad_per_s": float(std), "seed": int(seed)}
     path = directory / "scenario.yaml"
-    path.write_text("# studies/map_sensitivity/map_sensitivity.py: the "
-                    "shipped scenario with release noise.\nthrow:\n  noise:\n"
-                    f"    joint_velocity_std_rad_per_s: {std:g}\n"
-                    f"    seed: {seed}\n")
+    path.write_text("# studies/map_sensitivity/map_sensitivity.py: "
+                    f"{base or 'the shipped scenario'} with release noise.\n"
+                    + yaml.safe_dump(fields, sort_keys=False))
     return path
 
 
@@ -99,6 +104,9 @@ def main(argv=None) -> int:
                         help="joint-velocity noise levels, rad/s")
     parser.add_argument("--seeds", type=int, default=2)
     parser.add_argument("--step-ms", type=float, default=1.0)
+    parser.add_argument("--scenario", type=Path,
+                        help="the scenario the noise is added to (default: "
+                        "the shipped one)")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path,
                         default=_HERE / "map_sensitivity")
@@ -110,7 +118,7 @@ def main(argv=None) -> int:
     from regrasp_drake.world.objects import resolve_object
     try:
         try:
-            base = study._scenario(args.step_ms)
+            base = study._scenario(args.step_ms, args.scenario)
         except InputError as e:
             raise InputError(f"--step-ms {args.step_ms:g}: {e}") from None
         for std in args.stds:
@@ -140,7 +148,8 @@ def main(argv=None) -> int:
     for std, seed in levels:
         directory = _level_dir(args.out, std, seed)
         directory.mkdir(parents=True, exist_ok=True)
-        scenario = None if std == 0 else _write_scenario(directory, std, seed)
+        scenario = (args.scenario if std == 0 else
+                    _write_scenario(directory, std, seed, args.scenario))
         for name in args.objects:
             print(f"{name}, noise {std:g} rad/s, seed {seed}", file=sys.stderr)
             maps[name][(std, seed)] = study.map_at_step(

@@ -58,7 +58,9 @@ def release_state(scenario, obj, logs) -> dict:
     v_WO (m/s) and w_O, the angular velocity in the object's frame (rad/s)."""
     from pydrake.common.eigen_geometry import Quaternion
     from pydrake.math import RotationMatrix
-    t_free = scenario.throw.settle_s + scenario.throw.knot_times_s[-1]
+
+    from regrasp_drake.station import throw
+    t_free = scenario.throw.settle_s + throw.end_s(scenario.throw)
     k = int(np.searchsorted(logs.t, t_free))
     x = logs.object_state[:, k]
     R_WO = RotationMatrix(Quaternion(x[:4] / np.linalg.norm(x[:4]))).matrix()
