@@ -4,6 +4,7 @@ predictor's error.
     .venv/bin/python studies/catch_tolerance/catch_tolerance.py
         [--objects holdout-… …] [--library F [F …]] [--step-mm 10]
         [--reach-mm 40] [--workers 2]
+        [--maps DIR --map-step-ms X --scenario F]
         [--out studies/catch_tolerance/catch_tolerance]
 
 For each object: the watching throw and its plan (the palm's grasp pose
@@ -44,7 +45,9 @@ _SETUPS = {}  # per worker process: the watch and plan are made once
 
 
 def _setup(name, library):
-    """(scenario, object, ik, the watched plan, the learned parameters)."""
+    """(scenario, object, ik, the watched plan, the learned parameters).
+    `library`: a regrasp library's path, or ("cell", h_catch, h_down,
+    scenario path or None) for a cell taken from a map."""
     if (name, library) not in _SETUPS:
         _SETUPS[(name, library)] = _make_setup(name, library)
     return _SETUPS[(name, library)]
@@ -59,12 +62,30 @@ def _make_setup(name, library):
     from regrasp_drake.throw_catch import plan_catch, watch
     from regrasp_drake.world.objects import resolve_object
     torch.set_num_threads(1)
-    scenario = load_scenario()
+    from_map = isinstance(library, tuple)
+    scenario = load_scenario(library[3] if from_map else None)
     obj = resolve_object(name=name)
     ik = ArmIk()
     plan = plan_catch(scenario, obj, ik, watch(scenario, obj, ik))
+    if from_map:
+        return scenario, obj, ik, plan, (library[1], library[2])
     entry = lookup(library, name)
     return scenario, obj, ik, plan, (entry.h_catch, entry.h_down)
+
+
+def robust_cell(map_path: Path) -> tuple[float, float]:
+    """(h_catch, h_down) of a map's caught cell with the most caught cells
+    in its 3x3 block (ties: the first in the map's order): where a learner
+    that had seen the whole map would put the hand."""
+    from regrasp_drake.grid import read_rows
+    rows = read_rows(map_path)
+    caught = {tuple(cell): row["outcome"] == "caught"
+              for cell, row in rows.items()}
+    best = max((sum(caught.get((i + di, j + dj), False)
+                    for di in (-1, 0, 1) for dj in (-1, 0, 1)), -i, -j)
+               for (i, j), ok in caught.items() if ok)
+    row = rows[(-best[1], -best[2])]
+    return float(row["h_catch"]), float(row["h_down"])
 
 
 def _offset_throw(task):
@@ -126,6 +147,15 @@ def main() -> int:
     parser.add_argument("--library", type=Path, nargs="+",
                         default=[results / "library_holdout.yaml",
                                  results / "library_table1.yaml"])
+    parser.add_argument("--maps", type=Path,
+                        help="instead of --library: the cell of each object "
+                        "is its map's most robust one (`robust_cell`), from "
+                        "<maps>/<object>_<--map-step-ms>ms.jsonl (as "
+                        "studies/timestep_convergence/timestep_study.py "
+                        "writes them), the throw that of --scenario")
+    parser.add_argument("--map-step-ms", type=float, default=1.0)
+    parser.add_argument("--scenario", type=Path,
+                        help="with --maps: the scenario (default: shipped)")
     parser.add_argument("--step-mm", type=int, default=10)
     parser.add_argument("--reach-mm", type=int, default=40)
     parser.add_argument("--workers", type=int, default=2)
@@ -137,9 +167,18 @@ def main() -> int:
               f"{args.reach_mm}: expected a step > 0 and a reach >= 0",
               file=sys.stderr)
         return 2
-    from regrasp_drake.learning.library import load_library
     library = {}
-    for name in args.objects:
+    if args.maps:
+        for name in args.objects:
+            path = args.maps / f"{name}_{args.map_step_ms:g}ms.jsonl"
+            if not path.is_file():
+                print(f"catch_tolerance: error: --maps: no map {path}",
+                      file=sys.stderr)
+                return 2
+            library[name] = ("cell", *robust_cell(path),
+                             str(args.scenario) if args.scenario else None)
+    from regrasp_drake.learning.library import load_library
+    for name in [] if args.maps else args.objects:
         library[name] = next((str(p) for p in args.library
                               if name in load_library(p)), None)
         if library[name] is None:
@@ -162,9 +201,13 @@ def main() -> int:
     for name in args.objects:
         rows = [done[(name, dx, dy)] for dx in offsets for dy in offsets]
         tolerance = tolerance_mm(rows)
-        offset = predictor_offset(name, library[name])
+        # The flight predictor is the finger throw's: no offset for a map's.
+        offset = (predictor_offset(name, library[name]) if not args.maps
+                  else {"dx_mm": 0.0, "dy_mm": 0.0, "dz_mm": 0.0,
+                        "rotation_deg": 0.0, "dt_ms": 0.0})
         planar = float(np.hypot(offset["dx_mm"], offset["dy_mm"]))
         summary["objects"][name] = {
+            "h_catch": rows[0]["h_catch"], "h_down": rows[0]["h_down"],
             "tolerance_mm": None if tolerance is None else round(tolerance, 1),
             "caught_offsets": sum(r["outcome"] == "caught" for r in rows),
             "offsets": len(rows),
