@@ -152,11 +152,11 @@ def _grid_entry(args) -> str:
 
 
 def _cmd_grid(args) -> int:
-    from regrasp_drake.grid import format_map, success_map
     from regrasp_drake.station.scenario import load_scenario
     load_scenario(args.scenario)  # refuse a bad scenario before forking
     _check_workers(args.workers)
     entry = _grid_entry(args)
+    from regrasp_drake.grid import format_map, success_map  # torch: after
     rows = success_map(object_name=args.object, object_file=args.object_file,
                        scenario_path=args.scenario, out=args.out,
                        workers=args.workers, catch_point=args.catch_point)
@@ -326,7 +326,6 @@ def _cmd_apply(args) -> int:
 
 
 def _cmd_dataset(args) -> int:
-    from regrasp_drake.learning.dataset import generate
     from regrasp_drake.station.scenario import load_scenario
     from regrasp_drake.world.objects import load_catalogue
     load_scenario(args.scenario)  # refuse a bad scenario before any work
@@ -339,6 +338,7 @@ def _cmd_dataset(args) -> int:
         if name not in catalogue:
             raise InputError(f"--objects: got {name!r}, expected a catalogue "
                              "object (see `regrasp-drake objects`)")
+    from regrasp_drake.learning.dataset import generate  # torch: after
     provenance = generate(names, args.out, workers=args.workers,
                           backend=args.backend, scenario_path=args.scenario,
                           catch_points=args.catch_points)
@@ -694,7 +694,7 @@ def _beside(args, path, holds) -> dict:
     """{which: (path, what it holds)} of the files a command writes beside
     an output (or, for --maps-dir, in it)."""
     if holds == "map":
-        from regrasp_drake.grid import plan_path
+        from regrasp_drake.map_rows import plan_path
         return {"its plan": (plan_path(path), "json")}
     if holds == "weights":
         report_json, curve_png = _train_files(path)
@@ -867,7 +867,7 @@ def _check_map(label: str, path: Path) -> None:
     """A map (grid's --out, table1's maps) is ours only with its F.plan.json
     beside it, and resumed only with every row whole (a malformed row is
     refused naming its line; a last line cut by a kill is computed again)."""
-    from regrasp_drake.grid import plan_path, read_rows
+    from regrasp_drake.map_rows import plan_path, read_rows
     if path.is_file() and path.stat().st_size and not plan_path(path).exists():
         raise InputError(
             f"{label}: got {quote(str(path))}, an existing file without "

@@ -1,4 +1,5 @@
-"""Success maps over the parameter space (parameter_space.py), and their rows.
+"""Success maps over the parameter space (parameter_space.py), and their rows
+(written and read by map_rows.py).
 
 A success map runs one catch episode per cell. The cells share one simulated
 throw up to the moment their parameters are first read, and fork from there
@@ -15,15 +16,15 @@ from pathlib import Path
 
 import torch
 
-from regrasp_drake.errors import InputError, field_error, quote
-from regrasp_drake.input_files import load_json, parse_json, read_text
+from regrasp_drake.errors import InputError
+from regrasp_drake.input_files import load_json
+from regrasp_drake.map_rows import open_rows, plan_path, read_rows
 from regrasp_drake.parameter_space import (  # noqa: F401 (nearest_cell: re-exported)
     ENDINGS,
     H_CATCH_VALUES,
     H_DOWN_VALUES,
     cell_parameters,
     cells,
-    is_cell,
     nearest_cell,
 )
 from regrasp_drake.planning.ik import ArmIk
@@ -54,61 +55,6 @@ def plan_object(scenario, obj, ik, catch_point: int = 1):
             f"{len(plans)}: object {obj.name} has {len(plans)} reachable "
             f"catch point(s) at least {CATCH_POINT_SEPARATION_S} s apart")
     return plans[catch_point - 1]
-
-
-def map_key(row) -> tuple[int, int]:
-    """The cell of a success map's row; InputError for a row that is not
-    one (no cell of the grid, no outcome)."""
-    cell = row.get("cell") if isinstance(row, dict) else None
-    if not (isinstance(cell, list) and is_cell(cell)):
-        raise field_error("cell", cell, "[i_catch, i_down] of the grid")
-    if not isinstance(row.get("outcome"), str):
-        raise field_error("outcome", row.get("outcome"), "a string")
-    return tuple(cell)
-
-
-def read_rows(path: Path, key=map_key) -> dict:
-    """{key(row): row} from a JSON-lines file (by default a success map's
-    rows, keyed by cell: map_key). A last line cut by a kill (no newline at
-    its end) is skipped (its work runs again); any other line that is not a
-    row key() reads is refused (InputError naming the file and the line)."""
-    done = {}
-    path = Path(path)
-    if not path.exists():
-        return done
-    lines = read_text(path, "JSON-lines file of rows").split("\n")
-    for n, line in enumerate(lines, 1):
-        if not line.strip():
-            continue
-        try:
-            row = parse_json(line)
-            k = key(row)
-            hash(k)
-        except (InputError, KeyError, TypeError, IndexError, ValueError) as e:
-            if n == len(lines):  # no newline after it: cut by a kill
-                continue
-            reason = (str(e) if isinstance(e, InputError)
-                      else f"{type(e).__name__} {quote(str(e))}")
-            raise InputError(f"{path}: line {n}: not a whole row ({reason}), "
-                             "expected one JSON row per line: delete the "
-                             "line to compute it again, or give another "
-                             "file") from None
-        done[k] = row
-    return done
-
-
-def open_rows(path: Path):
-    """The JSON-lines file at path, opened to append rows. A last line cut by
-    a kill (no newline at its end) is removed first, so that every line of
-    the file stays a whole row (its work runs again; read_rows would skip
-    it too)."""
-    path = Path(path)
-    if path.exists():
-        data = path.read_bytes()
-        if data and not data.endswith(b"\n"):
-            with path.open("r+b") as f:
-                f.truncate(data.rfind(b"\n") + 1)
-    return path.open("a")
 
 
 def append_rows(function, tasks, path: Path, done: dict, key, *,
@@ -177,12 +123,6 @@ def success_map(*, object_name=None, object_file=None, scenario_path=None,
     check_resume(out, map_source(scenario, obj, catch_point, plan))
     return run_map(scenario, obj, ik, plan, out, workers=workers,
                    progress=progress)
-
-
-def plan_path(out: Path) -> Path:
-    """The file beside a map's rows that says what they were computed from."""
-    out = Path(out)
-    return out.with_name(out.name + ".plan.json")
 
 
 def map_source(scenario, obj, catch_point: int, plan) -> dict:

@@ -207,6 +207,36 @@ class TestCli(unittest.TestCase):
                     self.assertIn(expected, result.stderr)
             self.assertFalse(Path(d, "no").exists())
 
+    def test_grid_and_dataset_refuse_bad_input_before_loading_torch(self):
+        """torch takes seconds to load: a bad flag, scenario, object or
+        existing map is refused before it is (and before any Drake
+        simulation)."""
+        with tempfile.TemporaryDirectory() as d:
+            bad_map = Path(d) / "map.jsonl"
+            bad_map.write_text("{}\n")
+            Path(d, "map.jsonl.plan.json").write_text("{}\n")
+            cases = (
+                ["grid", "--object", "table1-row2", "--workers", "0"],
+                ["grid", "--object", "table1-row2", "--scenario-text",
+                 "{bogus: 1}"],
+                ["grid", "--object", "nosuch"],
+                ["grid", "--object", "table1-row2", "--out", str(bad_map)],
+                ["dataset", "--objects", "nosuch", "--out-dir", d],
+                ["dataset", "--workers", "0", "--out-dir", d],
+            )
+            for args in cases:
+                result = subprocess.run(
+                    [sys.executable, "-c",
+                     "import sys; from regrasp_drake.cli import main; "
+                     "rc = main(sys.argv[1:]); "
+                     "print(rc, 'torch' in sys.modules)", *args],
+                    capture_output=True, text=True, timeout=120)
+                with self.subTest(args=args[:3]):
+                    self.assertEqual(result.stdout.split(), ["2", "False"],
+                                     result.stderr)
+                    self.assertIn(f"regrasp-drake {args[0]}: error: ",
+                                  result.stderr)
+
     def test_output_cut_by_the_reader_is_no_traceback(self):
         # The reader is gone before the command writes (`objects | head`
         # when head has had its lines).

@@ -1,6 +1,7 @@
 """The searches over the 150 cells: the paper's wavefront order (Figs. 7-8)
 and the map-prior search, alone, in the learning phase and on the command
-line. One short learning run (three throws)."""
+line, and the search object the learning phase loops over, fed outcomes by
+hand. One short learning run (three throws)."""
 
 import contextlib
 import io
@@ -17,6 +18,8 @@ from regrasp_drake.errors import InputError
 from regrasp_drake.learning.dataset import object_of
 from regrasp_drake.learning.search import (
     FEATURE_SIGMA,
+    MapPrior,
+    Search,
     attempts_to_catch,
     feature_weighted_order,
     feature_weights,
@@ -103,6 +106,92 @@ def block(i_range, j_range) -> np.ndarray:
     caught = np.zeros((N_CATCH, N_DOWN), bool)
     caught[i_range[0]:i_range[1] + 1, j_range[0]:j_range[1] + 1] = True
     return caught
+
+
+def proposals(search: Search, outcomes) -> list:
+    """The cells `search` proposes while it is told `outcomes` one by one
+    (it may stop first: a catch, or no cell left)."""
+    proposed = []
+    for outcome in outcomes:
+        if search.next_cell is None:
+            break
+        proposed.append(search.next_cell)
+        search.tell(outcome)
+    return proposed
+
+
+class TestSearch(unittest.TestCase):
+    """The search object alone: it proposes a cell, is told how the throw
+    there ended, and proposes the next (no simulation: the outcomes are
+    given here)."""
+
+    def test_wavefront_proposes_its_order_until_a_catch(self):
+        start = (4, 7)
+        search = Search(start)
+        outcomes = ["dropped", "timeout", "landed", "failed", "dropped",
+                    "caught", "dropped"]
+        proposed = proposals(search, outcomes)
+        self.assertEqual(proposed, wavefront_order(start)[:6])
+        self.assertEqual(search.tried, list(zip(proposed, outcomes)))
+        self.assertTrue(search.caught)
+        self.assertIsNone(search.next_cell)  # over after the catch
+        with self.assertRaises(InputError) as e:
+            search.tell("dropped")
+        self.assertIn("outcome", str(e.exception))
+
+    def test_every_cell_once_then_exhausted(self):
+        search = Search((9, 0))
+        proposed = proposals(search, ["dropped"] * 200)
+        self.assertEqual(proposed, wavefront_order((9, 0)))
+        self.assertIsNone(search.next_cell)
+        self.assertFalse(search.caught)
+        self.assertEqual(len(search.tried), 150)
+
+    def test_unreachable_cells_are_passed_over_without_a_throw(self):
+        """The arm lowers the hand to the fourth h_down at most: the cells
+        of the three deepest columns are never proposed, and are recorded
+        as unreachable where the wavefront reaches them."""
+        reach = [j >= 3 for j in range(N_DOWN)]
+        start = (5, 3)
+        search = Search(start, reach=reach)
+        proposed = proposals(search, ["dropped"] * 200)
+        order = wavefront_order(start)
+        self.assertEqual(proposed, [c for c in order if reach[c[1]]])
+        self.assertEqual([c for c, _ in search.tried], order)
+        self.assertEqual([c for c, outcome in search.tried
+                          if outcome == Search.UNREACHABLE],
+                         [c for c in order if not reach[c[1]]])
+        # A start the arm cannot reach is passed over too.
+        self.assertEqual(Search((5, 0), reach=reach).next_cell, (5, 3))
+        with self.assertRaises(InputError) as e:
+            Search(start, reach=reach[:5])
+        self.assertIn("reach", str(e.exception))
+
+    def test_map_prior_follows_the_maps_the_failures_leave(self):
+        """Two maps catch only at (0, 0), one only at (9, 14): from (0, 0),
+        a failure there points to (9, 14); a catch there ends the search."""
+        kind_a, kind_b = block((0, 0), (0, 0)), block((9, 9), (14, 14))
+        prior = MapPrior([kind_a, kind_a, kind_b], sigma_cells=0)
+        search = Search((0, 0), prior)
+        self.assertEqual(proposals(search, ["dropped", "caught"]),
+                         [(0, 0), (9, 14)])
+        self.assertTrue(search.caught)
+        # The failure moved the weight to the map that does not catch at
+        # (0, 0): each factor EPS for the two that do, 1 - EPS for it.
+        np.testing.assert_allclose(prior.w, np.array([0.2, 0.2, 0.8]) / 1.2)
+
+    def test_map_prior_counts_an_unreachable_cell_as_a_failure(self):
+        """With columns the arm does not reach, the map prior proposes what
+        it would without them, less those cells: each is a failure to it,
+        as a throw there would be."""
+        maps = np.random.default_rng(1).random((6, N_CATCH, N_DOWN))
+        reach = [j >= 4 for j in range(N_DOWN)]
+        start = (3, 6)
+        everywhere = list(Search(start, MapPrior(maps)))
+        search = Search(start, MapPrior(maps), reach=reach)
+        self.assertEqual(proposals(search, ["dropped"] * 200),
+                         [c for c in everywhere if reach[c[1]]])
+        self.assertEqual([c for c, _ in search.tried], everywhere)
 
 
 class TestMapPriorOrder(unittest.TestCase):

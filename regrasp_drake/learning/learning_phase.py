@@ -5,13 +5,15 @@ stage finds the catch point and plans the hand's pose there
 (`throw_catch.plan_catch`); the MLP predicts (h_catch, h_down) from
 (v_catch, h_cm, r_cm, d_obj, v_conv); throw 2 catches with that prediction;
 when it fails, the search goes on from the prediction's cell, one throw per
-cell, until a catch or the grid is exhausted: the paper's wavefront search
-(`search="wavefront"`, the default; `search.wavefront_order`), or the
-map-prior search (`search="map-prior"`; `search.map_prior_order`), which
-after each failed cell tries the cell most likely to catch according to the
-training success maps (models/dataset/maps.npz) that agree with the failures
-so far. Every throw recreates the same initial conditions, so the flight
-repeats exactly and only the catch differs.
+cell, until a catch or the grid is exhausted. The search is an object
+(`search.Search`): `learn` throws at the cell it proposes and tells it the
+outcome. It is the paper's wavefront search (`search="wavefront"`, the
+default; `search.wavefront_order`), or the map-prior search
+(`search="map-prior"`; `search.MapPrior`), which after each failed cell
+tries the cell most likely to catch according to the training success maps
+(models/dataset/maps.npz) that agree with the failures so far. Every throw
+recreates the same initial conditions, so the flight repeats exactly and
+only the catch differs.
 
 Throw 2 uses the parameters of the grid cell nearest the clamped prediction,
 not the prediction itself: the network's output is quantized to the paper's
@@ -64,9 +66,9 @@ from regrasp_drake.learning import library as lib
 from regrasp_drake.learning.flight_predictor import flight_from_release
 from regrasp_drake.learning.search import (
     SEARCHES,
-    feature_weighted_order,
+    Search,
     load_prior_maps,
-    wavefront_order,
+    object_prior,
 )
 from regrasp_drake.parameter_space import (
     H_CATCH_RANGE,
@@ -315,6 +317,49 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
     meshcat: recorded by every throw; on_episode(result) is called after each
     (e.g. RunReplay.add_episode). progress: a stream that gets one line per
     throw (None: quiet)."""
+    prior = _check_learn_arguments(
+        flight_predictor=flight_predictor, at_release=at_release,
+        search=search, prior_maps=prior_maps, prior_features=prior_features,
+        max_throws=max_throws, library_path=library_path)
+    phase = _Phase(scenario, obj, model, ik or ArmIk(), prior=prior,
+                   at_release=at_release, meshcat=meshcat,
+                   on_episode=on_episode, progress=progress)
+    # Throw 1 watches (or the flight is predicted); the offline stage plans
+    # the catch and the network's cell starts the search. At release, throw
+    # 1 plans its own catch, and starts the search, when it lets go.
+    phase.plan_first(flight_predictor)
+    # One throw per cell the search proposes, until one catches.
+    while True:
+        if phase.search is not None and phase.search.next_cell is None:
+            stopped = "exhausted"
+            break
+        if max_throws is not None and phase.throws >= max_throws:
+            stopped = "max_throws"
+            break
+        result = phase.catch()  # at the search's next cell
+        if result is None:  # at release: nothing to catch
+            stopped = "no_catch_point"
+            break
+        phase.search.tell(result.outcome)
+        if result.caught:
+            stopped = "caught"
+            break
+        if phase.predicted:  # the predicted flight's plan failed
+            stopped = phase.replan(result, max_throws)
+            if stopped is not None:
+                break
+    return phase.result(stopped, library_path=library_path,
+                        scenario_label=scenario_label,
+                        object_source=object_source,
+                        first_throw=flight_predictor is not None or at_release)
+
+
+def _check_learn_arguments(*, flight_predictor, at_release, search,
+                           prior_maps, prior_features, max_throws,
+                           library_path):
+    """Refuses learn's bad arguments before any throw; returns the map
+    prior's (maps, features) for search "map-prior" (the shipped ones when
+    none are given), None for the wavefront."""
     if at_release and flight_predictor is not None:
         raise field_error("flight_predictor", "given",
                           "none when planning at release")
@@ -341,199 +386,232 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
                                "attempt)")
     if library_path is not None:
         lib.load_library(library_path)  # a malformed file: refused now
-    t0 = time.perf_counter()
-    ik = ik or ArmIk()
+    return None if search != "map-prior" else (prior_maps, prior_features)
 
-    def report(line):
-        if progress is not None:
-            print(f"{obj.name}: {line}", file=progress, flush=True)
 
-    # Throw 1 watches (or, in first-throw mode, the flight is predicted); the
-    # offline stage plans the catch and the network predicts its parameters.
-    watched, throws, replanned = None, 0, None
-    plan = None
-    if flight_predictor is not None:
-        try:
-            plan = plan_catch(scenario, obj, ik,
-                              flight_predictor.as_watched(obj, scenario))
-            report("no watching throw: the catch is planned from the "
-                   "predicted flight")
-        except InputError as e:
-            report(f"the predicted flight has no reachable catch point ({e});"
-                   " throw 1 watches")
-            replanned = {"after_throw": 0, "from": "watching throw"}
-    if plan is None and not at_release:
-        watched = watch(scenario, obj, ik, meshcat=meshcat)
-        throws = 1
-        if on_episode is not None:
-            on_episode(watched)
-        report(f"throw 1 (watch): {watched.outcome}, {watched.sim_time_s:.2f}"
-               f" s simulated, {watched.wall_s:.1f} s wall")
-        try:
-            plan = plan_catch(scenario, obj, ik, watched)
-        except InputError as e:
-            raise NoCatchPoint(str(e), throws=1,
-                               sim_time_s=watched.sim_time_s,
-                               wall_s=time.perf_counter() - t0) from None
-    predicted_plan = flight_predictor is not None and replanned is None
+class _Phase:
+    """One learning phase between its throws: the throws made, the plan the
+    catches use, the search over the cells from the network's cell for that
+    plan, and the attempts so far (see `learn`, which runs its loop)."""
 
-    def start_search(plan):
-        features = network_features(obj, plan.catch_point)
-        raw, prediction = predict(model, features)
-        start, reach = feasible_start(nearest_cell(*prediction), ik, plan)
-        report(f"catch point at t = {plan.catch_point.t_s:.3f} s, v_catch "
-               f"{plan.catch_point.v_catch:.3f} m/s; network: h_catch "
-               f"{raw[0]:.3f} m, h_down {raw[1]:.3f} m -> start cell {start}")
+    def __init__(self, scenario: Scenario, obj: ObjectSpec, model: CatchMlp,
+                 ik: ArmIk, *, prior, at_release: bool, meshcat, on_episode,
+                 progress):
+        self.scenario, self.obj, self.model, self.ik = scenario, obj, model, ik
+        self.prior = prior  # (maps, features) of the map prior, or None
+        self.at_release = at_release
+        self.meshcat, self.on_episode, self.progress = (meshcat, on_episode,
+                                                        progress)
+        self.t0 = time.perf_counter()
+        self.throws = 0
+        self.watched: EpisodeResult | None = None
+        self.plan: CatchPlan | None = None
+        self.first_plan: CatchPlan | None = None
+        self.search: Search | None = None
+        self.features = self.raw = self.prediction = None
+        self.attempts: list[Attempt] = []
+        self.predicted = False  # the plan is the predicted flight's
+        self.replanned: dict | None = None
+        self.unplanned_sim_s = 0.0  # throws with nothing to catch at release
+
+    def report(self, line: str) -> None:
+        if self.progress is not None:
+            print(f"{self.obj.name}: {line}", file=self.progress, flush=True)
+
+    def watch(self) -> EpisodeResult:
+        """A watching throw (no catch attempt)."""
+        self.watched = watch(self.scenario, self.obj, self.ik,
+                             meshcat=self.meshcat)
+        self.throws += 1
+        if self.on_episode is not None:
+            self.on_episode(self.watched)
+        w = self.watched
+        self.report(f"throw {self.throws} (watch): {w.outcome}, "
+                    f"{w.sim_time_s:.2f} s simulated, {w.wall_s:.1f} s wall")
+        return w
+
+    def plan_first(self, flight_predictor) -> None:
+        """The plan of the first catch, from the predicted flight or else a
+        watching throw (NoCatchPoint when it shows none), and its search;
+        at release, nothing yet."""
+        plan = None
+        if flight_predictor is not None:
+            try:
+                plan = plan_catch(self.scenario, self.obj, self.ik,
+                                  flight_predictor.as_watched(self.obj,
+                                                              self.scenario))
+                self.report("no watching throw: the catch is planned from "
+                            "the predicted flight")
+                self.predicted = True
+            except InputError as e:
+                self.report(f"the predicted flight has no reachable catch "
+                            f"point ({e}); throw 1 watches")
+                self.replanned = {"after_throw": 0, "from": "watching throw"}
+        if plan is None and not self.at_release:
+            watched = self.watch()
+            try:
+                plan = plan_catch(self.scenario, self.obj, self.ik, watched)
+            except InputError as e:
+                raise NoCatchPoint(str(e), throws=1,
+                                   sim_time_s=watched.sim_time_s,
+                                   wall_s=time.perf_counter() - self.t0
+                                   ) from None
+        if plan is not None:
+            self.start_search(plan)
+        self.first_plan = plan
+
+    def start_search(self, plan: CatchPlan) -> None:
+        """The network's cell for `plan` (moved to an h_down the arm reaches,
+        `feasible_start`) and a new search from it; the catches use `plan`."""
+        self.plan = plan
+        self.features = network_features(self.obj, plan.catch_point)
+        self.raw, self.prediction = predict(self.model, self.features)
+        start, reach = feasible_start(nearest_cell(*self.prediction), self.ik,
+                                      plan)
+        self.report(f"catch point at t = {plan.catch_point.t_s:.3f} s, "
+                    f"v_catch {plan.catch_point.v_catch:.3f} m/s; network: "
+                    f"h_catch {self.raw[0]:.3f} m, h_down {self.raw[1]:.3f} m "
+                    f"-> start cell {start}")
         if not all(reach):
-            report(f"the arm lowers the hand to h_down "
-                   f"{H_DOWN_VALUES[reach.index(True)]:.2f} m at most here: "
-                   f"the {10 * reach.count(False)} cells below are skipped")
-        if search == "map-prior":
-            order = feature_weighted_order(start, prior_maps, prior_features,
-                                           features)
-        else:
-            order = iter(wavefront_order(start))
-        # A cell whose lowered pose the arm cannot reach fails whatever the
-        # object does: no throw is spent on it (to the map prior it is one
-        # more failure, as it would be).
-        order = (cell for cell in order if reach[cell[1]])
-        return features, raw, prediction, start, order
+            self.report(f"the arm lowers the hand to h_down "
+                        f"{H_DOWN_VALUES[reach.index(True)]:.2f} m at most "
+                        f"here: the {10 * reach.count(False)} cells below "
+                        "are skipped")
+        prior = (None if self.prior is None
+                 else object_prior(*self.prior, self.features))
+        self.search = Search(start, prior, reach=reach)
 
-    features = raw = prediction = start = order = None
-    if plan is not None:
-        features, raw, prediction, start, order = start_search(plan)
-    first_plan = plan
+    def catch(self) -> EpisodeResult | None:
+        """A throw caught at the search's next cell with the plan's pose,
+        recorded as an attempt. At release, the throw plans its catch when
+        it lets the object go (throw 1's plan starts the search); when there
+        is nothing to catch then, the throw counts and None is returned
+        (NoCatchPoint when no throw had a plan yet)."""
+        def plan_at_release(state, t):
+            """The plan of this throw from its release (see run_episode)."""
+            self.plan = plan_catch(self.scenario, self.obj, self.ik,
+                                   flight_from_release(state, t, self.obj,
+                                                       self.scenario))
+            if self.search is None:
+                self.report(f"planned at the release (t = {t:.3f} s)")
+                self.start_search(self.plan)
+            return self.plan.X_WG, cell_parameters(self.search.next_cell)
 
-    def plan_at_release(state, t):
-        """at_release's hook (see run_episode): the plan of this throw from
-        its release; throw 1's plan starts the network and the search."""
-        nonlocal plan, features, raw, prediction, start, order, cell
-        plan = plan_catch(scenario, obj, ik,
-                          flight_from_release(state, t, obj, scenario))
-        if order is None:
-            report(f"planned at the release (t = {t:.3f} s)")
-            features, raw, prediction, start, order = start_search(plan)
-            cell = next(order)
-        return plan.X_WG, cell_parameters(cell)
-
-    # The next throw catches at the predicted cell; the search goes on (it
-    # is asked for a cell only after a failed throw, which the map prior
-    # takes into account). In first-throw mode, a failed catch from the
-    # predicted plan was still watched: the search starts again from the
-    # plan of what was seen of its flight (`throw_catch.seen_flight`), or,
-    # if that shows no reachable catch point, from a watching throw. At
-    # release, throw 1's plan (made during the throw, `plan_at_release`)
-    # starts the search.
-    attempts, stopped, unplanned_sim_s = [], "exhausted", 0.0
-    while True:
-        cell = None if order is None else next(order, None)
-        if order is not None and cell is None:
-            break
-        if max_throws is not None and throws >= max_throws:
-            stopped = "max_throws"
-            break
+        cell = None if self.search is None else self.search.next_cell
         try:
             result = run_episode(
-                scenario, obj, ik=ik,
-                X_WG=RigidTransform() if at_release else plan.X_WG,
+                self.scenario, self.obj, ik=self.ik,
+                X_WG=RigidTransform() if self.at_release else self.plan.X_WG,
                 catch_parameters=(cell_parameters(cell) if cell is not None
                                   else (0.0, 0.0)),
-                meshcat=meshcat, throw_number=throws + 1,
-                at_release=plan_at_release if at_release else None)
+                meshcat=self.meshcat, throw_number=self.throws + 1,
+                at_release=plan_at_release if self.at_release else None)
         except InputError as e:
-            if not at_release:
+            if not self.at_release:
                 raise
-            throws += 1  # nothing to catch at the release: the throw counts
-            unplanned_sim_s += release_time(scenario)
-            report(f"throw {throws}: no reachable catch point at the release"
-                   f" ({e})")
-            if plan is None:  # nothing planned: no search to report
-                raise NoCatchPoint(str(e), throws=throws,
-                                   sim_time_s=unplanned_sim_s,
-                                   wall_s=time.perf_counter() - t0) from None
-            stopped = "no_catch_point"
-            break
-        throws += 1
+            self.throws += 1  # nothing to catch at the release: it counts
+            self.unplanned_sim_s += release_time(self.scenario)
+            self.report(f"throw {self.throws}: no reachable catch point at "
+                        f"the release ({e})")
+            if self.plan is None:  # nothing planned: no search to report
+                raise NoCatchPoint(str(e), throws=self.throws,
+                                   sim_time_s=self.unplanned_sim_s,
+                                   wall_s=time.perf_counter() - self.t0
+                                   ) from None
+            return None
+        self.throws += 1
+        cell = self.search.next_cell  # at release, throw 1's search's first
         h_catch, h_down = cell_parameters(cell)
-        if on_episode is not None:
-            on_episode(result)
-        attempts.append(Attempt(throw=throws, cell=cell, h_catch=h_catch,
-                                h_down=h_down, outcome=result.outcome,
-                                sim_time_s=result.sim_time_s,
-                                wall_s=result.wall_s, message=result.message,
-                                ending=(None if result.caught
-                                        else ending(result.summary()))))
-        how = "" if result.caught else f" ({attempts[-1].ending})"
-        report(f"throw {throws}: cell {cell} (h_catch {h_catch:.2f} m, h_down "
-               f"{h_down:.2f} m): {result.outcome}{how}, "
-               f"{result.sim_time_s:.2f} s simulated, {result.wall_s:.1f} s "
-               "wall")
-        if result.caught:
-            stopped = "caught"
-            break
-        if not predicted_plan:
-            continue
-        predicted_plan = False
-        try:
-            seen = seen_flight(scenario, obj, result)
-            new_plan = plan_catch(scenario, obj, ik, seen)
-            replanned = {"after_throw": throws, "from": "seen flight",
-                         "seen_until_s": round(float(seen.logs.t[-1]), 4)}
-            report(f"replanned from the flight seen until t = "
-                   f"{seen.logs.t[-1]:.3f} s")
-        except InputError as e:
-            if max_throws is not None and throws >= max_throws:
-                stopped = "max_throws"
-                break
-            report(f"the flight seen in throw {throws} shows no reachable "
-                   f"catch point ({e}); throw {throws + 1} watches")
-            watched = watch(scenario, obj, ik, meshcat=meshcat)
-            throws += 1
-            if on_episode is not None:
-                on_episode(watched)
-            replanned = {"after_throw": throws - 1, "from": "watching throw"}
-            try:
-                new_plan = plan_catch(scenario, obj, ik, watched)
-            except InputError as e:  # the throws made are still counted
-                report(str(e))
-                replanned["error"] = str(e)
-                stopped = "no_catch_point"
-                break
-        if _same_pose(new_plan, plan):
-            continue  # the prediction's plan was right: the search goes on
-        plan = new_plan
-        features, raw, prediction, start, order = start_search(plan)
+        if self.on_episode is not None:
+            self.on_episode(result)
+        self.attempts.append(Attempt(
+            throw=self.throws, cell=cell, h_catch=h_catch, h_down=h_down,
+            outcome=result.outcome, sim_time_s=result.sim_time_s,
+            wall_s=result.wall_s, message=result.message,
+            ending=None if result.caught else ending(result.summary())))
+        how = "" if result.caught else f" ({self.attempts[-1].ending})"
+        self.report(f"throw {self.throws}: cell {cell} (h_catch {h_catch:.2f}"
+                    f" m, h_down {h_down:.2f} m): {result.outcome}{how}, "
+                    f"{result.sim_time_s:.2f} s simulated, "
+                    f"{result.wall_s:.1f} s wall")
+        return result
 
-    learned = None
-    if stopped == "caught":
-        last = attempts[-1]
-        learned = lib.LearnedEntry(
-            object_source=object_source,
-            object_features=dict(obj.features()),
-            scenario=scenario_label,
-            scenario_digest=scenario_digest(scenario),
-            code_version=__version__,
-            catch_point=plan.catch_point.as_dict(),
-            p_WG=[float(x) for x in plan.X_WG.translation()],
-            R_WG=plan.X_WG.rotation().matrix().tolist(),
-            q_grasp=[float(x) for x in plan.q_grasp], side=plan.side,
-            h_catch=last.h_catch, h_down=last.h_down, cell=list(last.cell),
-            throws=throws, search=search,
-            mode=("at-release" if at_release else
-                  "first-throw" if first_throw else "watch"))
-        if library_path is not None:
-            lib.store(library_path, obj.name, learned)
-    return LearningResult(
-        object=obj.name, caught=learned is not None, stopped=stopped,
-        throws=throws,
-        sim_time_s=(0.0 if watched is None else watched.sim_time_s)
-        + sum(a.sim_time_s for a in attempts) + unplanned_sim_s,
-        wall_s=time.perf_counter() - t0, watched=watched, plan=plan,
-        features=features, raw_prediction=raw, prediction=prediction,
-        start_cell=start, attempts=attempts, learned=learned,
-        first_throw=first_throw, replanned=replanned,
-        first_plan=None if first_plan is plan else first_plan,
-        at_release=at_release, search=search)
+    def replan(self, result: EpisodeResult, max_throws) -> str | None:
+        """First-throw mode, after the predicted flight's plan failed: the
+        throw was still watched until the hand touched the object, so the
+        catch is planned again from what was seen of its flight
+        (`throw_catch.seen_flight`) or, if that shows no reachable catch
+        point, from a watching throw; a new plan starts a new search.
+        Returns why the phase stops ("max_throws", "no_catch_point"), or
+        None when it goes on."""
+        self.predicted = False
+        try:
+            seen = seen_flight(self.scenario, self.obj, result)
+            plan = plan_catch(self.scenario, self.obj, self.ik, seen)
+            self.replanned = {"after_throw": self.throws,
+                              "from": "seen flight",
+                              "seen_until_s": round(float(seen.logs.t[-1]), 4)}
+            self.report(f"replanned from the flight seen until t = "
+                        f"{seen.logs.t[-1]:.3f} s")
+        except InputError as e:
+            if max_throws is not None and self.throws >= max_throws:
+                return "max_throws"
+            self.report(f"the flight seen in throw {self.throws} shows no "
+                        f"reachable catch point ({e}); throw "
+                        f"{self.throws + 1} watches")
+            self.replanned = {"after_throw": self.throws,
+                              "from": "watching throw"}
+            watched = self.watch()
+            try:
+                plan = plan_catch(self.scenario, self.obj, self.ik, watched)
+            except InputError as e:  # the throws made are still counted
+                self.report(str(e))
+                self.replanned["error"] = str(e)
+                return "no_catch_point"
+        if not _same_pose(plan, self.plan):  # else the search goes on
+            self.start_search(plan)
+        return None
+
+    def result(self, stopped: str, *, library_path, scenario_label: str,
+               object_source: str, first_throw: bool) -> LearningResult:
+        """The phase's result; after a catch, the learned entry, stored in
+        the library at library_path (None: not stored)."""
+        learned = None
+        if stopped == "caught":
+            last, plan = self.attempts[-1], self.plan
+            learned = lib.LearnedEntry(
+                object_source=object_source,
+                object_features=dict(self.obj.features()),
+                scenario=scenario_label,
+                scenario_digest=scenario_digest(self.scenario),
+                code_version=__version__,
+                catch_point=plan.catch_point.as_dict(),
+                p_WG=[float(x) for x in plan.X_WG.translation()],
+                R_WG=plan.X_WG.rotation().matrix().tolist(),
+                q_grasp=[float(x) for x in plan.q_grasp], side=plan.side,
+                h_catch=last.h_catch, h_down=last.h_down,
+                cell=list(last.cell), throws=self.throws,
+                search="wavefront" if self.prior is None else "map-prior",
+                mode=("at-release" if self.at_release else
+                      "first-throw" if first_throw else "watch"))
+            if library_path is not None:
+                lib.store(library_path, self.obj.name, learned)
+        return LearningResult(
+            object=self.obj.name, caught=learned is not None, stopped=stopped,
+            throws=self.throws,
+            sim_time_s=(0.0 if self.watched is None
+                        else self.watched.sim_time_s)
+            + sum(a.sim_time_s for a in self.attempts) + self.unplanned_sim_s,
+            wall_s=time.perf_counter() - self.t0, watched=self.watched,
+            plan=self.plan, features=self.features,
+            raw_prediction=self.raw, prediction=self.prediction,
+            start_cell=None if self.search is None else self.search.start,
+            attempts=self.attempts, learned=learned,
+            first_throw=first_throw, replanned=self.replanned,
+            first_plan=(None if self.first_plan is self.plan
+                        else self.first_plan),
+            at_release=self.at_release,
+            search="wavefront" if self.prior is None else "map-prior")
 
 
 def _same_pose(a: CatchPlan, b: CatchPlan) -> bool:

@@ -1,6 +1,11 @@
 """The searches over the parameter space: the paper's wavefront order (§V.A,
 Figs. 7-8) and an optional map-prior search.
 
+A search is an object, `Search`: it proposes a cell, is told how the throw
+there ended, and proposes the next (the learning phase's loop,
+learning_phase.learn); `map_prior_order` and `wavefront_order` give the
+order it would try the cells in on a map where none catches.
+
 The wavefront search starts at the cell nearest the network's output, then visits
 "sequential layers of neighbors" completely: ring 1 (the cells one unit away
 in h_catch and/or h_down, Chebyshev distance 1), ring 2, and so on until the
@@ -12,7 +17,7 @@ cell units (the four edge neighbours of a ring before its corners), then by
 h_catch index, then by h_down index (both ascending: lower h_catch first,
 more lowering first).
 
-The map-prior search (`map_prior_order`, the learning phase's
+The map-prior search (a Search with a `MapPrior`, the learning phase's
 `search="map-prior"`; the wavefront is the paper's and the default) orders
 the cells by what the training success maps say about an unseen object's
 map instead of by distance alone. It starts at the same cell (the network's).
@@ -229,70 +234,172 @@ def smooth(maps: np.ndarray, sigma_cells=SIGMA_CELLS) -> np.ndarray:
     return out
 
 
-def map_prior_order(start_cell: Cell, prior_maps, *, eps: float = EPS,
-                    sigma_cells: float = SIGMA_CELLS, weights=None):
-    """The map-prior search from start_cell (see the module's docstring): a
-    generator of cells, start_cell first. Each cell it yields is taken to
-    have failed when the next one is asked for, as the learning phase does
-    (it asks only after a failed throw). Every cell once, 150 in all.
+class MapPrior:
+    """The map-prior search's belief (see the module's docstring): the
+    smoothed training maps P_m and each map's weight w_m, which every failed
+    cell updates (`fail`); `most_likely` picks the next cell.
 
     prior_maps: (entries, 10, 15) success maps (booleans, or catch
     probabilities in [0, 1]) indexed (entry, i_catch, i_down). eps: the
     chance that an outcome contradicts a map, in (0, 0.5]. sigma_cells: the
-    smoothing Gaussian's standard deviation in cells, >= 0. weights: each
-    map's starting weight (entries, >= 0, not all 0; `feature_weights`), or
-    None for all 1."""
-    order = wavefront_order(start_cell)  # refuses a start outside the grid
-    maps = np.asarray(prior_maps, float)
-    if maps.ndim != 3 or maps.shape[1:] != SHAPE or len(maps) == 0:
-        raise field_error("prior_maps", f"an array of shape {maps.shape}",
-                          f"(entries >= 1, {SHAPE[0]}, {SHAPE[1]})")
-    if not np.all((maps >= 0) & (maps <= 1)):
-        raise field_error("prior_maps", "values outside [0, 1]",
-                          "catch outcomes or probabilities in [0, 1]")
-    if not 0 < eps <= 0.5:
-        raise field_error("eps", eps, "a probability in (0, 0.5]")
-    if not sigma_cells >= 0:
-        raise field_error("sigma_cells", sigma_cells, "a length >= 0 cells")
-    w = np.ones(len(maps)) if weights is None else np.asarray(weights, float)
-    if (w.shape != (len(maps),) or not np.all(np.isfinite(w))
-            or np.any(w < 0) or not w.sum() > 0):
-        raise field_error("weights", f"an array of shape {w.shape}",
-                          f"{len(maps)} finite weights >= 0, not all 0")
-    return _map_prior_cells(order, smooth(maps, sigma_cells), eps, w)
+    smoothing Gaussian's standard deviation in cells, >= 0 (or a pair, see
+    `smooth`). weights: each map's starting weight (entries, >= 0, not all
+    0; `feature_weights`), or None for all 1. observed(cell), optional:
+    each map's probability of what was seen at a failed cell (default
+    1 - P_m[cell]: that it did not catch)."""
+
+    def __init__(self, prior_maps, *, eps: float = EPS,
+                 sigma_cells: float = SIGMA_CELLS, weights=None,
+                 observed=None):
+        maps = np.asarray(prior_maps, float)
+        if maps.ndim != 3 or maps.shape[1:] != SHAPE or len(maps) == 0:
+            raise field_error("prior_maps", f"an array of shape {maps.shape}",
+                              f"(entries >= 1, {SHAPE[0]}, {SHAPE[1]})")
+        if not np.all((maps >= 0) & (maps <= 1)):
+            raise field_error("prior_maps", "values outside [0, 1]",
+                              "catch outcomes or probabilities in [0, 1]")
+        if not 0 < eps <= 0.5:
+            raise field_error("eps", eps, "a probability in (0, 0.5]")
+        if not np.all(np.asarray(sigma_cells) >= 0):
+            raise field_error("sigma_cells", sigma_cells,
+                              "a length >= 0 cells")
+        w = (np.ones(len(maps)) if weights is None
+             else np.array(weights, float))
+        if (w.shape != (len(maps),) or not np.all(np.isfinite(w))
+                or np.any(w < 0) or not w.sum() > 0):
+            raise field_error("weights", f"an array of shape {w.shape}",
+                              f"{len(maps)} finite weights >= 0, not all 0")
+        self.P = smooth(maps, sigma_cells)
+        self.w = w
+        self.eps = eps
+        self.observed = observed
+
+    def fail(self, cell: Cell) -> None:
+        """Updates the weights with a failure at `cell`."""
+        seen = (1 - self.P[:, cell[0], cell[1]] if self.observed is None
+                else self.observed(cell))
+        self.w *= self.eps + (1 - 2 * self.eps) * seen
+        self.w /= self.w.sum()  # no underflow after many failures (>= eps)
+
+    def most_likely(self, candidates: list[Cell]) -> Cell:
+        """The candidate with the largest posterior mean catch probability;
+        of equal ones (to 1e-9), the first."""
+        posterior = np.tensordot(self.w, self.P, axes=1)
+        return max(candidates, key=lambda c: round(float(posterior[c]), 9))
+
+
+def object_prior(prior_maps, prior_features, features,
+                 sigma: float | None = FEATURE_SIGMA) -> MapPrior:
+    """The map prior of an object with network features `features`: each
+    prior map first weighted by feature_weights(features, prior_features,
+    sigma); prior_features None (a prior without features): every map
+    alike."""
+    weights = (None if prior_features is None
+               else feature_weights(features, prior_features, sigma))
+    return MapPrior(prior_maps, weights=weights)
+
+
+class Search:
+    """One search over the grid's cells from a start cell (the network's):
+    it proposes a cell (`next_cell`), is told how the throw there ended
+    (`tell`), and proposes the next, until a cell catches or every cell has
+    been tried. Each cell is tried at most once.
+
+    Without a prior it is the paper's wavefront search: the cells in
+    `wavefront_order(start_cell)`. With a MapPrior it is the map-prior
+    search: after each failure, the untried cell the prior finds most likely
+    to catch (ties to the earlier in the wavefront order).
+
+    reach, optional: per h_down of the grid, whether the arm reaches the
+    lowered pose (`throw_catch.reachable_h_down`). A cell of a column it
+    does not reach fails whatever the object does: it is passed over
+    without a throw, recorded as "unreachable" (a failure to the map
+    prior, as it would be).
+
+    State: `order`, the wavefront from the start (every cell once);
+    `tried`, each cell tried and its outcome, in order; `next_cell`, the
+    cell to try next (None once one caught or none is left); the prior's
+    weights."""
+
+    UNREACHABLE = "unreachable"  # the outcome of a cell passed over
+
+    def __init__(self, start_cell: Cell, prior: MapPrior | None = None, *,
+                 reach=None):
+        self.order = wavefront_order(start_cell)  # refuses a start outside
+        self.start = self.order[0]
+        self.prior = prior
+        self.reach = None if reach is None else list(reach)
+        if self.reach is not None and len(self.reach) != SHAPE[1]:
+            raise field_error("reach", self.reach,
+                              f"{SHAPE[1]} booleans, one per h_down")
+        self.tried: list[tuple[Cell, str]] = []
+        self._untried = list(self.order)  # in wavefront order: the tie rule
+        self.next_cell: Cell | None = self._passing_unreachable(self.start)
+
+    @property
+    def caught(self) -> bool:
+        """Whether a cell caught."""
+        return bool(self.tried) and self.tried[-1][1] == "caught"
+
+    def tell(self, outcome: str) -> None:
+        """How the throw at next_cell ended ("caught", or how it failed);
+        the search then proposes its next cell."""
+        if self.next_cell is None:
+            raise field_error("outcome", outcome, "none: the search is over "
+                              "(a cell caught or every cell was tried)")
+        self._record(self.next_cell, outcome)
+        self.next_cell = (None if outcome == "caught"
+                          else self._passing_unreachable(self._choose()))
+
+    def __iter__(self):
+        """The cells proposed one after another, each taken to have failed
+        when the next is asked for (the learning phase asks for another
+        cell only after a failed throw): up to the first that catches,
+        `attempts_to_catch`; all of them, the order on a map where none
+        does."""
+        while self.next_cell is not None:
+            yield self.next_cell
+            self.tell("failed")
+
+    def _record(self, cell: Cell, outcome: str) -> None:
+        self.tried.append((cell, outcome))
+        self._untried.remove(cell)
+        if outcome != "caught" and self.prior is not None:
+            self.prior.fail(cell)
+
+    def _choose(self) -> Cell | None:
+        if not self._untried:
+            return None
+        if self.prior is None:
+            return self._untried[0]
+        return self.prior.most_likely(self._untried)
+
+    def _passing_unreachable(self, cell: Cell | None) -> Cell | None:
+        """cell, or if the arm cannot reach it, the next cell the search
+        proposes that it reaches (those passed over recorded)."""
+        while (cell is not None and self.reach is not None
+               and not self.reach[cell[1]]):
+            self._record(cell, self.UNREACHABLE)
+            cell = self._choose()
+        return cell
+
+
+def map_prior_order(start_cell: Cell, prior_maps, *, eps: float = EPS,
+                    sigma_cells: float = SIGMA_CELLS, weights=None):
+    """The map-prior search from start_cell (see MapPrior and Search): an
+    iterator of cells, start_cell first, each taken to have failed when the
+    next one is asked for. Every cell once, 150 in all. Bad arguments are
+    refused when it is called."""
+    return iter(Search(start_cell, MapPrior(
+        prior_maps, eps=eps, sigma_cells=sigma_cells, weights=weights)))
 
 
 def feature_weighted_order(start_cell: Cell, prior_maps, prior_features,
                            features, sigma: float | None = FEATURE_SIGMA):
-    """map_prior_order from start_cell with each prior map first weighted by
-    feature_weights(features, prior_features, sigma): the map-prior search
-    of an object with network features `features`. prior_features None (a
-    prior without features): every map alike."""
-    weights = (None if prior_features is None
-               else feature_weights(features, prior_features, sigma))
-    return map_prior_order(start_cell, prior_maps, weights=weights)
-
-
-def _map_prior_cells(order: list[Cell], P: np.ndarray, eps: float,
-                     w: np.ndarray, observed=None):
-    """The generator behind map_prior_order (its checks run when it is
-    called, not at the first next()). observed(cell), optional: each map's
-    probability of what was seen at a failed cell (default 1 - P: that it
-    did not catch)."""
-    untried = list(order)       # kept in wavefront order: max() takes the
-    w = w.copy()                # first of equal cells, the tie rule
-    cell = order[0]
-    while True:
-        yield cell
-        untried.remove(cell)
-        if not untried:
-            return
-        seen = (1 - P[:, cell[0], cell[1]] if observed is None
-                else observed(cell))
-        w *= eps + (1 - 2 * eps) * seen
-        w /= w.sum()  # no underflow after many failures (each factor >= eps)
-        posterior = np.tensordot(w, P, axes=1)
-        cell = max(untried, key=lambda c: round(float(posterior[c]), 9))
+    """map_prior_order from start_cell with the map prior of an object with
+    network features `features` (`object_prior`)."""
+    return iter(Search(start_cell, object_prior(prior_maps, prior_features,
+                                                features, sigma)))
 
 
 def attempts_to_catch(order, caught) -> int | None:

@@ -61,12 +61,12 @@ from regrasp_drake.learning.search import (
     EPS,
     SHAPE,
     SIGMA_CELLS,
-    _map_prior_cells,
+    MapPrior,
+    Search,
     attempts_to_catch,
     load_prior_maps,
     map_prior_order,
     smooth,
-    wavefront_order,
 )
 from regrasp_drake.paths import MODELS_DIR
 
@@ -142,13 +142,12 @@ def ending_prior_order(start_cell, prior_maps, prior_endings, observed,
     if endings.shape != maps.shape:
         raise field_error("prior_endings", f"shape {endings.shape}",
                           f"the prior maps' shape {maps.shape}")
-    P = smooth(maps, sigma_cells)
     onehot = np.stack([endings == k for k in range(len(ENDING_KEYS))], axis=1)
     E = smooth(onehot.reshape(-1, *SHAPE), sigma_cells).reshape(onehot.shape)
-    # The map prior's generator, reading the failure's ending at each cell.
-    return _map_prior_cells(wavefront_order(start_cell), P, eps,
-                            np.ones(len(maps)),
-                            lambda c: E[:, observed[c], c[0], c[1]])
+    # The map prior's search, reading the failure's ending at each cell.
+    return iter(Search(start_cell, MapPrior(
+        maps, eps=eps, sigma_cells=sigma_cells,
+        observed=lambda c: E[:, observed[c], c[0], c[1]])))
 
 
 def training_endings(names, maps, cells_dir: Path) -> np.ndarray:

@@ -45,8 +45,9 @@ FIXED_START = (7, 2)
 
 
 def cells_to_catch(start, P, eps, caught) -> int | None:
-    order = search._map_prior_cells(search.wavefront_order(start), P, eps,
-                                    np.ones(len(P)))
+    """The cells the map-prior search from `start` tries on the map
+    `caught` up to its first catch, P the prior's maps already smoothed."""
+    order = search.Search(start, search.MapPrior(P, eps=eps, sigma_cells=0))
     return search.attempts_to_catch(order, caught)
 
 
