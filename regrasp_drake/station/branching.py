@@ -23,6 +23,7 @@ tests compare them): this only skips recomputing the shared part.
 
 import os
 import pickle
+import signal
 import time
 
 import numpy as np
@@ -90,10 +91,12 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
     t_final = scenario.monitor.max_time_s + 1.0
 
     def finish(pid):
-        fd, indices = children.pop(pid)
-        with os.fdopen(fd, "rb") as f:
+        fd, indices = children[pid]
+        with os.fdopen(fd, "rb", closefd=False) as f:
             data = f.read()
         os.waitpid(pid, 0)
+        os.close(fd)
+        del children[pid]
         if not data:
             message = "the simulation process died"
             results = [dict(outcome="failed", sim_time_s=None,
@@ -114,9 +117,15 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
         while len(children) >= max(1, workers):
             finish(next(iter(children)))
         read_fd, write_fd = os.pipe()
+        # Ctrl-C held back over the fork until the child is on record:
+        # arriving during it, its handler would run inside an at-fork hook
+        # (logging's), which swallows the KeyboardInterrupt; held back, it is
+        # raised right after, here, and the child is killed below.
+        mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
         pid = os.fork()
         if pid == 0:
             try:
+                signal.pthread_sigmask(signal.SIG_SETMASK, mask)
                 os.close(read_fd)
                 result = _run_child(simulator, station, scenario, source,
                                     source_context, parameters[group[0]],
@@ -127,48 +136,63 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
                 os._exit(0)
         os.close(write_fd)
         children[pid] = (read_fd, group)
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
 
-    message = ""
-    k = round(context.get_time() / period)  # 0, or the handoff's sample
-    while waiting:
-        k += 1
-        message = advance_to_outcome(simulator, station, scenario,
-                                     min(k * period, t_final))
-        done = read_outcome(station, context, message)[0] != "running"
-        if message or done or context.get_time() >= t_final:
-            break
-        phase = machine.GetOutputPort("phase").Eval(machine_context)[0]
-        if phase != Phase.WAIT:
-            continue
-        # What the state machine's check at this time will read.
-        distance = (float(np.min(ir.GetOutputPort("ir_levels").Eval(
-            ir_context)[3:])) / levels * approach_range)
-        triggered = []
-        while waiting and distance < waiting[0]:
-            triggered.append(waiting.pop(0))
-        # Rows that trigger at the same sample share their history to here,
-        # and h_catch is never read again: cells with the same h_down are one
-        # simulation.
-        for h_down in sorted({d for h, d in parameters if h in triggered}):
-            fork([i for i, (h, d) in enumerate(parameters)
-                  if h in triggered and d == h_down])
-    # Cells that never triggered share the parent's history to its end.
-    if any(h in waiting for h, _ in parameters):
-        if not message and read_outcome(station, context, "")[0] == "running":
-            message = advance_to_outcome(simulator, station, scenario, t_final)
-        outcome, grasp_t = read_outcome(station, context, message)
-        shared = dict(outcome=outcome, sim_time_s=round(context.get_time(), 4),
-                      catch_time_s=grasp_t, message=message,
-                      wall_s=round(time.perf_counter() - t0, 3),
-                      p_WO_final=_object_position(station, context),
-                      **read_ending(station, context, outcome))
-        for i, (h, d) in enumerate(parameters):
-            if h in waiting:
-                rows[i] = {"h_catch": h, "h_down": d} | shared
-                if on_result is not None:
-                    on_result(i, rows[i])
-    while children:
-        finish(next(iter(children)))
+    try:
+        message = ""
+        k = round(context.get_time() / period)  # 0, or the handoff's sample
+        while waiting:
+            k += 1
+            message = advance_to_outcome(simulator, station, scenario,
+                                         min(k * period, t_final))
+            done = read_outcome(station, context, message)[0] != "running"
+            if message or done or context.get_time() >= t_final:
+                break
+            phase = machine.GetOutputPort("phase").Eval(machine_context)[0]
+            if phase != Phase.WAIT:
+                continue
+            # What the state machine's check at this time will read.
+            distance = (float(np.min(ir.GetOutputPort("ir_levels").Eval(
+                ir_context)[3:])) / levels * approach_range)
+            triggered = []
+            while waiting and distance < waiting[0]:
+                triggered.append(waiting.pop(0))
+            # Rows that trigger at the same sample share their history to
+            # here, and h_catch is never read again: cells with the same
+            # h_down are one simulation.
+            for h_down in sorted({d for h, d in parameters if h in triggered}):
+                fork([i for i, (h, d) in enumerate(parameters)
+                      if h in triggered and d == h_down])
+        # Cells that never triggered share the parent's history to its end.
+        if any(h in waiting for h, _ in parameters):
+            if (not message
+                    and read_outcome(station, context, "")[0] == "running"):
+                message = advance_to_outcome(simulator, station, scenario,
+                                             t_final)
+            outcome, grasp_t = read_outcome(station, context, message)
+            shared = dict(
+                outcome=outcome, sim_time_s=round(context.get_time(), 4),
+                catch_time_s=grasp_t, message=message,
+                wall_s=round(time.perf_counter() - t0, 3),
+                p_WO_final=_object_position(station, context),
+                **read_ending(station, context, outcome))
+            for i, (h, d) in enumerate(parameters):
+                if h in waiting:
+                    rows[i] = {"h_catch": h, "h_down": d} | shared
+                    if on_result is not None:
+                        on_result(i, rows[i])
+        while children:
+            finish(next(iter(children)))
+    except BaseException:
+        # Interrupted (Ctrl-C) or failed: no child outlives the command.
+        for pid, (fd, _) in children.items():
+            try:
+                os.kill(pid, signal.SIGKILL)
+                os.waitpid(pid, 0)
+            except ChildProcessError:
+                pass  # reaped already
+            os.close(fd)
+        raise
     return rows
 
 
