@@ -3,6 +3,7 @@
 the scenario's checks, and the arm and the fingers following their
 references through a palm toss."""
 
+import tempfile
 import unittest
 from pathlib import Path
 
@@ -16,6 +17,7 @@ from regrasp_drake.station.scenario import Scenario, load_scenario
 from regrasp_drake.station.station import build_station, initialize
 from regrasp_drake.world import robot
 from regrasp_drake.world.objects import load_catalogue
+from tests.refusals import RefusalAssertions, load_script
 
 STUDY = Path(__file__).parents[1] / "studies" / "palm_toss" / "palm_toss.yaml"
 CENIC = ("{plant_config: {time_step: 0}, simulator_config: "
@@ -125,6 +127,24 @@ class CenicTrackingTest(unittest.TestCase):
 
     def test_finger_torques_within_the_servo_limit(self):
         self.assertLessEqual(self.rows[:, 3].max(), 10.0 + 1e-9)
+
+
+class ReleaseConvergenceOptionsTest(RefusalAssertions, unittest.TestCase):
+    """studies/palm_toss/release_convergence.py's two-scenario options."""
+    main = staticmethod(
+        load_script("studies/palm_toss/release_convergence.py").main)
+
+    def test_bad_options_are_refused_before_any_work(self):
+        with tempfile.TemporaryDirectory() as d:
+            out = ["--objects", "table1-row2", "--out", d]
+            self.assertRefused(["--fine-step-s", "0.0001",
+                                "--fine-scenario-text", "{}", *out],
+                               "--fine-step-s", "--fine-scenario-text")
+            self.assertRefused(["--scenario-text", CENIC,
+                                "--fine-scenario-text",
+                                "{simulator_config: {accuracy: 2}}", *out],
+                               "simulator_config.accuracy")
+            self.assertFalse((Path(d) / "rows.jsonl").exists())
 
 
 if __name__ == "__main__":

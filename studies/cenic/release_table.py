@@ -5,13 +5,16 @@ as one Markdown table per figure, and each run's wall time.
     .venv/bin/python studies/cenic/release_table.py
         --runs "discrete 0.25/0.0625 ms=/work/main/out/palm_toss_release_q"
                "CENIC 1e-3/1e-4=out/cenic_release_1e-3" ...
-        [--objects NAME ...]
+        [--objects NAME ...] [--cross LABEL LABEL]
 
 Each run is LABEL=DIR, DIR holding the script's rows.jsonl. Objects: those
-given, or the first run's; a run without an object shows "-".
+given, or the first run's; a run without an object shows "-". --cross
+compares the fine settings of two of the runs with each other (do a
+discrete step and a CENIC accuracy tend to the same release?).
 """
 
 import argparse
+import importlib.util
 import json
 import sys
 from pathlib import Path
@@ -69,10 +72,31 @@ def table(runs: dict, objects: list) -> str:
     return "\n".join(out)
 
 
+def cross(runs: dict, a: str, b: str, objects: list) -> str:
+    """The four figures between run a's fine setting and run b's."""
+    path = Path(__file__).parents[1] / "palm_toss" / "release_convergence.py"
+    spec = importlib.util.spec_from_file_location("_release", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    out = [f"\n**{a} (fine) against {b} (fine)**\n",
+           "| object | " + " | ".join(t for _, t, _, _ in FIGURES) + " |",
+           "|---|" + "---:|" * len(FIGURES)]
+    for name in objects:
+        if name not in runs[a] or name not in runs[b]:
+            continue
+        d = module.differences(runs[a][name]["fine"], runs[b][name]["fine"])
+        out.append(f"| {name} | " + " | ".join(
+            "-" if d[k] is None else f"{d[k]:.{n}f}"
+            for k, _, _, n in FIGURES) + " |")
+    return "\n".join(out)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--runs", nargs="+", required=True)
     parser.add_argument("--objects", nargs="+", default=None)
+    parser.add_argument("--cross", nargs=2, default=None,
+                        metavar="LABEL")
     args = parser.parse_args(argv)
     runs = {}
     for run in args.runs:
@@ -84,6 +108,13 @@ def main(argv=None) -> int:
         runs[label] = read_run(Path(directory))
     objects = args.objects or list(next(iter(runs.values())))
     print(table(runs, objects))
+    if args.cross:
+        for label in args.cross:
+            if label not in runs:
+                print(f"error: --cross: got {label!r}, expected one of "
+                      f"{list(runs)}", file=sys.stderr)
+                return 2
+        print(cross(runs, *args.cross, objects))
     return 0
 
 
