@@ -13,7 +13,6 @@ import dataclasses as dc
 import logging
 
 import numpy as np
-
 from pydrake.common.value import AbstractValue
 from pydrake.geometry import (
     Box,

@@ -64,7 +64,9 @@ def table(runs: dict, objects: list) -> str:
     all_four, walls = [], []
     for label in labels:
         rows = [runs[label][n] for n in objects if n in runs[label]]
-        all_four.append(f"{sum(all(r.get(k) is not None and r[k] <= t for k, _, t, _ in FIGURES) for r in rows)}/{len(rows)}")
+        met = sum(all(r.get(k) is not None and r[k] <= t
+                      for k, _, t, _ in FIGURES) for r in rows)
+        all_four.append(f"{met}/{len(rows)}")
         walls.append(f"{sum(r['coarse']['wall_s'] for r in rows):.0f} + "
                      f"{sum(r['fine']['wall_s'] for r in rows):.0f}")
     out.append("| all four | " + " | ".join(all_four) + " |")
