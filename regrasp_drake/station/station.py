@@ -4,7 +4,7 @@ PUMA 560 + hand + object in a MultibodyPlant with point contact; an
 inverse-dynamics controller for the arm on its own arm-only plant; PD servos
 for the fingers (in the plant when it is discrete; on a continuous plant,
 which Drake's in-plant PD does not support, the same PD outside it, see
-FingerServos); the infrared sensors and the tactile bumper; the catch state
+add_finger_servos); the infrared sensors and the tactile bumper; the catch state
 machine; the source of the catch parameters (fixed, or the MLP); the grasp
 monitor; loggers; Meshcat when asked.
 """
@@ -309,12 +309,26 @@ def add_finger_servos(builder: DiagramBuilder, plant: MultibodyPlant, hand):
     state (q_d, v_d)."""
     gains = _take_out_pd_gains(plant, hand)
     n = len(gains)
-    kp, kd = np.diag([g[0] for g in gains]), np.diag([g[1] for g in gains])
-    K = np.hstack([kp, kd])
-    # [x_d; x] -> K x_d - K x, x = (q, v) of the hand.
+    K = np.hstack([np.diag([g[0] for g in gains]),
+                   np.diag([g[1] for g in gains])])
+    # The desired state is in actuator order (as the in-plant PD's port);
+    # the hand's state in its positions' and velocities' order: S picks,
+    # per actuator, its joint's q and v out of the hand's state x.
+    nq, nv = plant.num_positions(hand), plant.num_velocities(hand)
+    q_of = list(plant.GetPositionsFromArray(hand, np.arange(
+        plant.num_positions())))
+    v_of = list(plant.GetVelocitiesFromArray(hand, np.arange(
+        plant.num_velocities())))
+    S = np.zeros((2 * n, nq + nv))
+    for i, index in enumerate(plant.GetJointActuatorIndices(hand)):
+        joint = plant.get_joint_actuator(index).joint()
+        S[i, q_of.index(joint.position_start())] = 1.0
+        S[n + i, nq + v_of.index(joint.velocity_start())] = 1.0
+    # [x_d; x] -> K x_d - K S x.
     mux = builder.AddNamedSystem("finger_servo_inputs",
-                                 Multiplexer([2 * n, 2 * n]))
-    pd = builder.AddNamedSystem("finger_servos", MatrixGain(np.hstack([K, -K])))
+                                 Multiplexer([2 * n, nq + nv]))
+    pd = builder.AddNamedSystem("finger_servos",
+                                MatrixGain(np.hstack([K, -K @ S])))
     builder.Connect(plant.get_state_output_port(hand), mux.get_input_port(1))
     builder.Connect(mux.get_output_port(0), pd.get_input_port())
     builder.Connect(pd.get_output_port(), plant.get_actuation_input_port(hand))
