@@ -208,7 +208,8 @@ class OneOfEverythingTest(unittest.TestCase):
         default = _leaves(parse_yaml(scenario_yaml(Scenario()), tags=True))
         self.assertEqual(ours.keys(), default.keys())
         self.assertEqual([k for k in ours if ours[k] == default[k]],
-                         ["plant_config.contact_model"])
+                         ["plant_config.contact_model",
+                          "simulator_config.start_time"])
 
     def test_station_builds_and_steps(self):
         station = build_station(self.scenario, self.obj, ik=self.ik, X_WG=None)

@@ -33,6 +33,12 @@ the reference output ports expose directly. So no Python runs when the plant
 or the controller reads a reference (a computed output port would run
 several times per step), and the references are the same as if they were
 evaluated at the step's time.
+
+On a continuous plant (plant_config.time_step 0, integrated by CENIC) the
+update runs at the sensors' rate and makes the transitions only; the
+reference output ports are then computed from the time, so that the
+integrator, which chooses its own steps, sees smooth references rather
+than a hold.
 """
 
 import dataclasses as dc
@@ -230,12 +236,27 @@ class CatchStateMachine(LeafSystem):
         self._hand_ref = self.DeclareDiscreteState(
             np.concatenate(self._hand_reference(x0, 0.0)))
         self._dt = scenario.plant_config.time_step
-        self._ticks_per_sample = round(scenario.sensors.period_s / self._dt)
-        self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
-
-        self.DeclareStateOutputPort("arm_desired_state", self._arm_ref)
-        self.DeclareStateOutputPort("arm_desired_acceleration", self._acc_ref)
-        self.DeclareStateOutputPort("hand_desired_state", self._hand_ref)
+        if self._dt > 0.0:
+            self._ticks_per_sample = round(scenario.sensors.period_s / self._dt)
+            self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
+            self.DeclareStateOutputPort("arm_desired_state", self._arm_ref)
+            self.DeclareStateOutputPort("arm_desired_acceleration",
+                                        self._acc_ref)
+            self.DeclareStateOutputPort("hand_desired_state", self._hand_ref)
+        else:  # a continuous plant: references computed from the time
+            self._ticks_per_sample = 1
+            self.DeclarePeriodicDiscreteUpdateEvent(
+                scenario.sensors.period_s, 0.0, self._update)
+            depends = {self.time_ticket(), self.xd_ticket()}
+            self.DeclareVectorOutputPort(
+                "arm_desired_state", 12, self._calc_arm_state,
+                prerequisites_of_calc=depends)
+            self.DeclareVectorOutputPort(
+                "arm_desired_acceleration", 6, self._calc_arm_acceleration,
+                prerequisites_of_calc=depends)
+            self.DeclareVectorOutputPort(
+                "hand_desired_state", 2 * len(self._open), self._calc_hand,
+                prerequisites_of_calc=depends)
         self.DeclareVectorOutputPort(
             "phase", 1, self._calc_phase,
             prerequisites_of_calc={self.xd_ticket()})
@@ -297,6 +318,21 @@ class CatchStateMachine(LeafSystem):
         v = np.where(moving, np.sign(delta) * self._speed, 0.0)
         return q, v
 
+    def _calc_arm_state(self, context, output: BasicVector):
+        q, v, _ = self._arm_reference(
+            context.get_discrete_state(self._state).value(), context.get_time())
+        output.SetFromVector(np.concatenate([q, v]))
+
+    def _calc_arm_acceleration(self, context, output: BasicVector):
+        output.SetFromVector(self._arm_reference(
+            context.get_discrete_state(self._state).value(),
+            context.get_time())[2])
+
+    def _calc_hand(self, context, output: BasicVector):
+        output.SetFromVector(np.concatenate(self._hand_reference(
+            context.get_discrete_state(self._state).value(),
+            context.get_time())))
+
     def _calc_phase(self, context, output: BasicVector):
         output.SetAtIndex(0, context.get_discrete_state(self._state)[_PHASE])
 
@@ -309,6 +345,8 @@ class CatchStateMachine(LeafSystem):
             status = self._transition(context, x, t)
         x[_TICK] += 1
         discrete_state.set_value(self._state, x)
+        if self._dt == 0.0:  # references computed from the time
+            return status
         # The references for the next step.
         q, v, a = self._arm_reference(x, t + self._dt)
         discrete_state.set_value(self._arm_ref, np.concatenate([q, v]))

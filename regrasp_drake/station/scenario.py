@@ -1,8 +1,9 @@
 """The scenario: every physical constant of a throw-and-catch episode, with units.
 
 One typed dataclass tree, as Drake's hardware_sim example writes it: Drake's
-own `MultibodyPlantConfig` (`plant_config`) and the robot's model directives
-(`directives`) beside the project's fields. It is loaded from YAML with
+own `MultibodyPlantConfig` (`plant_config`), `SimulatorConfig`
+(`simulator_config`) and the robot's model directives (`directives`) beside
+the project's fields. It is loaded from YAML with
 pydrake's `yaml_load_typed` (unknown keys and values of the wrong type are
 refused first, naming the field: `check_schema`), then range-checked field
 by field. The defaults below are the shipped scenario; a scenario need only
@@ -35,6 +36,10 @@ from pathlib import Path
 from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
 from pydrake.multibody.parsing import ModelDirective
 from pydrake.multibody.plant import MultibodyPlantConfig
+from pydrake.systems.analysis import (
+    GetIntegrationSchemes,
+    SimulatorConfig,
+)
 
 from regrasp_drake.errors import InputError, field_error, quote
 from regrasp_drake.input_files import Tagged, dump_yaml, load_yaml, parse_yaml
@@ -261,12 +266,22 @@ def _plant_config() -> MultibodyPlantConfig:
 
 @dc.dataclass(eq=False)
 class Scenario:
-    # The discrete MultibodyPlant (Drake's MultibodyPlantConfig): time_step
-    # [s]; contact_model "point" (the object's stiffness and dissipation in
-    # `contact` are point contact's); discrete_contact_approximation "sap",
-    # "similar" or "lagged" (TAMSI failed to converge on throw impacts);
+    # The MultibodyPlant (Drake's MultibodyPlantConfig): time_step [s], or 0
+    # for a continuous plant (then simulator_config's integration_scheme
+    # must be "cenic"); contact_model "point" (the object's stiffness and
+    # dissipation in `contact` are point contact's);
+    # discrete_contact_approximation "sap", "similar" or "lagged" (TAMSI
+    # failed to converge on throw impacts; a continuous plant ignores it);
     # Drake's other settings at Drake's defaults.
     plant_config: MultibodyPlantConfig = dc.field(default_factory=_plant_config)
+    # The simulator and its integrator (Drake's SimulatorConfig, applied
+    # with ApplySimulatorConfig as hardware_sim does). Drake's default
+    # (runge_kutta3) integrates only the controllers' continuous states
+    # beside the discrete plant. "cenic", Drake's error-controlled convex
+    # integrator, needs plant_config.time_step 0; its `accuracy` [-] then
+    # sets the error it keeps each step within (smaller: more accurate).
+    simulator_config: SimulatorConfig = dc.field(
+        default_factory=SimulatorConfig)
     # The robot's model directives (default: sdf/puma560_hand.dmd.yaml, the
     # PUMA welded to the world, the hand to its flange); they must add the
     # models "puma560" and "hand". The arm's inverse-dynamics and inverse-
@@ -333,7 +348,10 @@ def validate(s: Scenario) -> Scenario:
     """Checks every field's range; returns `s` or raises InputError."""
     _check_generic(s)
     dt = s.plant_config.time_step
-    _in_range("plant_config.time_step", dt, 1e-5, 5e-3, " s")
+    if dt != 0.0:
+        _in_range("plant_config.time_step", dt, 1e-5, 5e-3,
+                  " s, or 0 (a continuous plant)")
+    _check_simulator_config(s.simulator_config, continuous=dt == 0.0)
     if s.plant_config.contact_model != "point":
         raise field_error("plant_config.contact_model",
                           s.plant_config.contact_model, "'point'")
@@ -399,8 +417,8 @@ def validate(s: Scenario) -> Scenario:
         raise field_error("throw.noise.seed", t.noise.seed,
                           "an integer >= 0")
     n = s.sensors
-    _in_range("sensors.period_s", n.period_s, dt, 0.05, " s")
-    ratio = n.period_s / dt
+    _in_range("sensors.period_s", n.period_s, max(dt, 1e-4), 0.05, " s")
+    ratio = n.period_s / dt if dt else 1.0
     if abs(ratio - round(ratio)) > 1e-9 * ratio:
         raise field_error("sensors.period_s", n.period_s,
                           f"a whole multiple of plant_config.time_step = {dt} s")
@@ -439,6 +457,29 @@ def validate(s: Scenario) -> Scenario:
     _in_range("monitor.ground_clearance_m", m.ground_clearance_m, 0.0, 1.0, " m")
     _in_range("monitor.max_time_s", m.max_time_s, 0.5, 60.0, " s")
     return s
+
+
+def _check_simulator_config(c: SimulatorConfig, continuous: bool) -> None:
+    """simulator_config's checks: a scheme Drake knows, and CENIC exactly
+    when the plant is continuous (CENIC refuses a discrete plant; the
+    station's continuous plant is built and tested for CENIC only)."""
+    schemes = tuple(GetIntegrationSchemes())
+    if c.integration_scheme not in schemes:
+        raise field_error("simulator_config.integration_scheme",
+                          c.integration_scheme, f"one of {schemes}")
+    if continuous != (c.integration_scheme == "cenic"):
+        raise field_error(
+            "simulator_config.integration_scheme", c.integration_scheme,
+            "'cenic' with plant_config.time_step 0 (a continuous plant), "
+            "another scheme with a discrete plant")
+    _in_range("simulator_config.accuracy", c.accuracy, 1e-12, 1.0)
+    _in_range("simulator_config.max_step_size", c.max_step_size, 1e-6, 1.0,
+              " s")
+    if c.start_time != 0.0:
+        raise field_error("simulator_config.start_time", c.start_time,
+                          "0 (an episode starts at t = 0 s)")
+    _in_range("simulator_config.target_realtime_rate",
+              c.target_realtime_rate, 0.0, 1e3)
 
 
 def check_catch_parameters(h_catch, h_down,

@@ -1,15 +1,18 @@
 """The throw-and-catch station: one Diagram, built top to bottom.
 
-PUMA 560 + hand + object in a discrete MultibodyPlant with point contact; an
-inverse-dynamics controller for the arm on its own arm-only plant; in-plant PD
-servos for the fingers; the infrared sensors and the tactile bumper; the
-catch state machine; the source of the catch parameters (fixed, or the MLP);
-the grasp monitor; loggers; Meshcat when asked.
+PUMA 560 + hand + object in a MultibodyPlant with point contact; an
+inverse-dynamics controller for the arm on its own arm-only plant; PD servos
+for the fingers (in the plant when it is discrete; on a continuous plant,
+which Drake's in-plant PD does not support, the same PD outside it, see
+add_finger_servos); the infrared sensors and the tactile bumper; the catch state
+machine; the source of the catch parameters (fixed, or the MLP); the grasp
+monitor; loggers; Meshcat when asked.
 """
 
 import dataclasses as dc
 import logging
 
+import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.geometry import (
     Box,
@@ -28,10 +31,20 @@ from pydrake.multibody.plant import (
     CoulombFriction,
     MultibodyPlant,
 )
-from pydrake.systems.analysis import InitializeParams, Simulator
+from pydrake.multibody.tree import PdControllerGains
+from pydrake.systems.analysis import (
+    ApplySimulatorConfig,
+    InitializeParams,
+    Simulator,
+)
 from pydrake.systems.controllers import InverseDynamicsController
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
-from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput
+from pydrake.systems.primitives import (
+    ConstantVectorSource,
+    LogVectorOutput,
+    MatrixGain,
+    Multiplexer,
+)
 
 from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning.ik import ArmIk
@@ -186,8 +199,13 @@ def build_station(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
                     arm_controller.get_input_port_desired_state())
     builder.Connect(machine.GetOutputPort("arm_desired_acceleration"),
                     arm_controller.get_input_port_desired_acceleration())
-    builder.Connect(machine.GetOutputPort("hand_desired_state"),
-                    plant.get_desired_state_input_port(instances.hand))
+    if plant.time_step() > 0:  # the fingers' PD servos are in the plant
+        builder.Connect(machine.GetOutputPort("hand_desired_state"),
+                        plant.get_desired_state_input_port(instances.hand))
+    else:
+        servos = add_finger_servos(builder, plant, instances.hand)
+        builder.Connect(machine.GetOutputPort("hand_desired_state"),
+                        servos.get_input_port(0))
 
     # The grasp monitor (paper §V.B); it stops the simulation at the outcome.
     palm = plant.GetBodyByName("palm", instances.hand)
@@ -232,8 +250,8 @@ def build_station(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
 
 
 def add_world(builder: DiagramBuilder, scenario: Scenario, obj: ObjectSpec):
-    """Adds the physics to `builder`: the scenario's discrete MultibodyPlant
-    (point contact, no air drag) with the robot of its directives (PUMA +
+    """Adds the physics to `builder`: the scenario's MultibodyPlant (point
+    contact, no air drag) with the robot of its directives (PUMA +
     hand welded to the world), the object a
     free body with the scenario's contact properties, the ground, gravity;
     finalized, robot self-collisions filtered. Returns (plant, scene_graph,
@@ -259,6 +277,62 @@ def add_world(builder: DiagramBuilder, scenario: Scenario, obj: ObjectSpec):
     object_geometries = _set_object_contact(plant, scene_graph, object_body,
                                             scenario)
     return plant, scene_graph, instances, object_body, object_geometries
+
+
+def _take_out_pd_gains(plant: MultibodyPlant, hand) -> list[tuple]:
+    """Removes the in-plant PD controllers of the hand's actuators and
+    returns their gains, (kp
+    [N·m/rad], kd [N·m·s/rad]) per actuator in the order of the hand's
+    actuation input port."""
+    gains = []
+    for index in plant.GetJointActuatorIndices(hand):
+        actuator = plant.get_joint_actuator(index)
+        if not actuator.has_controller():
+            raise RuntimeError(f"hand actuator {actuator.name()} has no "
+                               "drake:controller_gains")
+        g = actuator.get_controller_gains()
+        gains.append((g.p, g.d))
+        actuator.set_controller_gains(PdControllerGains(p=0.0, d=0.0))
+    return gains
+
+
+def add_finger_servos(builder: DiagramBuilder, plant: MultibodyPlant, hand):
+    """The fingers' PD servos outside a continuous plant: the hand's
+    in-plant PD controllers (sdf/hand.sdf's gains) are taken out of the
+    plant and the same law is built beside it,
+    u = kp (q_d - q) + kd (v_d - v), [N·m], fed to the
+    hand's actuation input, where the plant clamps it to each actuator's
+    effort limit (10 N·m, sdf/hand.sdf) as it clamps the in-plant PD's.
+    Drake's own systems (a multiplexer and a matrix gain), so that CENIC,
+    which linearizes the actuation by differencing the plant's state, runs
+    no Python for it. Returns the multiplexer: its input 0 takes the desired
+    state (q_d, v_d)."""
+    gains = _take_out_pd_gains(plant, hand)
+    n = len(gains)
+    K = np.hstack([np.diag([g[0] for g in gains]),
+                   np.diag([g[1] for g in gains])])
+    # The desired state is in actuator order (as the in-plant PD's port);
+    # the hand's state in its positions' and velocities' order: S picks,
+    # per actuator, its joint's q and v out of the hand's state x.
+    nq, nv = plant.num_positions(hand), plant.num_velocities(hand)
+    q_of = list(plant.GetPositionsFromArray(hand, np.arange(
+        plant.num_positions())))
+    v_of = list(plant.GetVelocitiesFromArray(hand, np.arange(
+        plant.num_velocities())))
+    S = np.zeros((2 * n, nq + nv))
+    for i, index in enumerate(plant.GetJointActuatorIndices(hand)):
+        joint = plant.get_joint_actuator(index).joint()
+        S[i, q_of.index(joint.position_start())] = 1.0
+        S[n + i, nq + v_of.index(joint.velocity_start())] = 1.0
+    # [x_d; x] -> K x_d - K S x.
+    mux = builder.AddNamedSystem("finger_servo_inputs",
+                                 Multiplexer([2 * n, nq + nv]))
+    pd = builder.AddNamedSystem("finger_servos",
+                                MatrixGain(np.hstack([K, -K @ S])))
+    builder.Connect(plant.get_state_output_port(hand), mux.get_input_port(1))
+    builder.Connect(mux.get_output_port(0), pd.get_input_port())
+    builder.Connect(pd.get_output_port(), plant.get_actuation_input_port(hand))
+    return mux
 
 
 def _set_object_contact(plant, scene_graph, object_body, scenario):
@@ -349,8 +423,10 @@ def _lowest_z(obj) -> float:
 
 
 def initialize(station: Station, scenario: Scenario) -> Simulator:
-    """A simulator at the episode's initial conditions (identical each time)."""
+    """A simulator at the episode's initial conditions (identical each time),
+    integrating as the scenario's simulator_config says."""
     simulator = Simulator(station.diagram)
+    ApplySimulatorConfig(scenario.simulator_config, simulator)
     context = simulator.get_mutable_context()
     plant = station.plant
     plant_context = plant.GetMyMutableContextFromRoot(context)
@@ -373,6 +449,7 @@ def continue_with(simulator: Simulator, station: Station, other: Station,
     for the same scenario reproduces `simulator`'s run bit for bit."""
     source = simulator.get_context()
     target = Simulator(other.diagram)
+    ApplySimulatorConfig(scenario.simulator_config, target)
     context = target.get_mutable_context()
     context.SetTime(source.get_time())
     for a, b in zip(station.diagram.GetSystems(), other.diagram.GetSystems()):

@@ -3,8 +3,18 @@ the catalogue (training, Table 1 and held-out sets), the watching throw at
 the scenario's step and at a finer one (default 4x finer), side by side.
 
     .venv/bin/python studies/palm_toss/release_convergence.py
-        [--scenario studies/palm_toss/palm_toss.yaml] [--fine-step-s S]
+        [--scenario studies/palm_toss/palm_toss.yaml] [--scenario-text YAML]
+        [--fine-step-s S | --fine-scenario-text YAML]
         [--objects NAME ...] [--workers 2] [--out out/palm_toss_release]
+
+--scenario-text overrides fields of the scenario for both settings;
+--fine-scenario-text makes the fine setting the scenario with these fields
+overridden instead of a finer step: a tighter CENIC accuracy, say
+(studies/cenic/FINDINGS.md):
+
+    --scenario-text '{plant_config: {time_step: 0}, simulator_config:
+        {integration_scheme: cenic, accuracy: 1e-3}}'
+    --fine-scenario-text '{simulator_config: {accuracy: 1e-4}}'
 
 Per object and step: the object's state in free flight at the end of the
 throw (after it has left the palm: the palm toss's release is over), its
@@ -57,17 +67,43 @@ def throw_at(scenario, obj, ik) -> dict:
     return row
 
 
+def settings(scenario_path, text, fine_step, fine_text):
+    """The (coarse, fine) scenarios: the scenario with `text` over it, and
+    that with `fine_text` over it too, or at `fine_step` [s]."""
+    coarse = load_scenario(scenario_path, text=text)
+    if fine_text is None:
+        return coarse, with_time_step(coarse, fine_step)
+    merged = fine_text if text is None else _merged_text(text, fine_text)
+    return coarse, load_scenario(scenario_path, text=merged)
+
+
+def _merged_text(text, fine_text) -> str:
+    """One YAML flow mapping: fine_text's fields over text's."""
+    from regrasp_drake.input_files import dump_yaml, parse_yaml
+    from regrasp_drake.station.scenario import _merged
+    return dump_yaml(_merged(parse_yaml(text, tags=True) or {},
+                             parse_yaml(fine_text, tags=True) or {}))
+
+
+def describe(scenario) -> dict:
+    """The setting that differs between the two runs."""
+    c = scenario.simulator_config
+    return {"time_step_s": scenario.time_step_s,
+            "integration_scheme": c.integration_scheme,
+            "accuracy": c.accuracy}
+
+
 def _task(args) -> dict:
     # The scenario travels as its path (Drake's config structs do not pickle).
-    name, scenario_path, fine = args
-    scenario = load_scenario(scenario_path)
+    name, scenario_path, text, fine, fine_text = args
+    scenario, fine_scenario = settings(scenario_path, text, fine, fine_text)
     obj = load_catalogue()[name]
     ik = ArmIk()
     coarse_row = throw_at(scenario, obj, ik)
-    fine_row = throw_at(with_time_step(scenario, fine),
-                        obj, ik)
+    fine_row = throw_at(fine_scenario, obj, ik)
     return {"object": name, "set": obj.set, "geometry": obj.geometry,
-            "steps_s": [scenario.time_step_s, fine],
+            "steps_s": [scenario.time_step_s, fine_scenario.time_step_s],
+            "settings": [describe(scenario), describe(fine_scenario)],
             "coarse": coarse_row, "fine": fine_row, **differences(
                 coarse_row, fine_row)}
 
@@ -110,17 +146,26 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scenario", type=Path,
                         default=Path(__file__).parent / "palm_toss.yaml")
+    parser.add_argument("--scenario-text", default=None,
+                        help="YAML fields over the scenario's, both settings")
     parser.add_argument("--fine-step-s", type=float, default=None,
                         help="default: the scenario's step / 4")
+    parser.add_argument("--fine-scenario-text", default=None,
+                        help="the fine setting: these YAML fields over the "
+                        "scenario's (instead of a finer step)")
     parser.add_argument("--objects", nargs="+", default=None)
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--out", type=Path,
                         default=Path("out/palm_toss_release"))
     args = parser.parse_args(argv)
     try:
-        scenario = load_scenario(args.scenario)
+        if args.fine_step_s is not None and args.fine_scenario_text:
+            raise InputError("--fine-step-s and --fine-scenario-text: "
+                             "give one of them, not both")
+        scenario = load_scenario(args.scenario, text=args.scenario_text)
         fine = args.fine_step_s or scenario.time_step_s / 4
-        with_time_step(scenario, fine)
+        scenario, fine_scenario = settings(
+            args.scenario, args.scenario_text, fine, args.fine_scenario_text)
         catalogue = load_catalogue()
         names = args.objects or list(catalogue)
         for name in names:
@@ -138,7 +183,8 @@ def main(argv=None) -> int:
     except InputError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    todo = [(n, args.scenario, fine) for n in names if n not in done]
+    todo = [(n, args.scenario, args.scenario_text, fine,
+             args.fine_scenario_text) for n in names if n not in done]
     if todo:
         append_rows(_task, todo, rows_path, done, lambda r: r["object"],
                     workers=args.workers, label="objects", unit="object")
@@ -151,7 +197,10 @@ def main(argv=None) -> int:
         print(f"{r['object']:24s} {r['spin_rad_per_s']:9.4f} "
               f"{r['velocity_mm_per_s']:8.2f} {r['position_mm']:7.2f} {cp}")
     summary = summarize(rows)
-    summary["steps_s"] = [scenario.time_step_s, fine]
+    summary["steps_s"] = [scenario.time_step_s, fine_scenario.time_step_s]
+    summary["settings"] = [describe(scenario), describe(fine_scenario)]
+    summary["wall_s"] = [round(sum(r[k]["wall_s"] for r in rows), 2)
+                         for k in ("coarse", "fine")]
     (args.out / "summary.json").write_text(json.dumps(summary, indent=1))
     print(json.dumps(summary, indent=1))
     return 0
