@@ -22,6 +22,7 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import EventStatus, LeafSystem
 
 from regrasp_drake.station.catch_state_machine import Phase
+from regrasp_drake.world.robot import FINGER_LINKS
 
 
 class Outcome(enum.IntEnum):
@@ -129,3 +130,54 @@ class GraspMonitor(LeafSystem):
     @staticmethod
     def grasp_time(monitor_state) -> float:
         return float(monitor_state[_GRASP_T])
+
+
+# ---- the check: what the plant's contact results say is held ---------------
+# The object is held when, at the end of an episode, it touches the palm (its
+# box, bumper or pads), the thumb and at least one finger facing the thumb,
+# and moves with the palm: its origin slips slower than HELD_SLIP_M_PER_S and
+# it turns slower than HELD_SPIN_RAD_PER_S relative to the palm. (At the end
+# of the hold the hand is at rest; a falling or rolling object moves at
+# decimetres per second.)
+HELD_SLIP_M_PER_S = 0.02
+HELD_SPIN_RAD_PER_S = 0.5
+_THUMB = frozenset(FINGER_LINKS["thumb"])
+_OPPOSING = frozenset(b for f, links in FINGER_LINKS.items() if f != "thumb"
+                      for b in links)
+
+
+def contact_verdict(plant, plant_context, object_body, palm_body) -> dict:
+    """What the plant's contact results say of the object now (the check of
+    the grasp monitor's verdict, not a sensor: no real hand has them).
+
+    Returns `touching`, the names of the bodies in contact with the object,
+    sorted; `slip_m_per_s` and `spin_rad_per_s`, the speed of the object's
+    origin and its angular speed relative to the palm body; and
+    `held_by_contact`, whether it is held: touching the palm, the thumb and
+    another finger, slip and spin below HELD_SLIP_M_PER_S and
+    HELD_SPIN_RAD_PER_S. Raises what the plant raises when the contact
+    results cannot be computed (after a failed contact solve)."""
+    results = plant.get_contact_results_output_port().Eval(plant_context)
+    me = object_body.index()
+    touching = set()
+    for i in range(results.num_point_pair_contacts()):
+        info = results.point_pair_contact_info(i)
+        a, b = info.bodyA_index(), info.bodyB_index()
+        if me in (a, b):
+            touching.add(plant.get_body(b if a == me else a).name())
+    V_WO = plant.EvalBodySpatialVelocityInWorld(plant_context, object_body)
+    V_WP = plant.EvalBodySpatialVelocityInWorld(plant_context, palm_body)
+    p_PO_W = (plant.EvalBodyPoseInWorld(plant_context, object_body)
+              .translation()
+              - plant.EvalBodyPoseInWorld(plant_context, palm_body)
+              .translation())
+    # The velocity of the palm-fixed point at the object's origin: V_WP
+    # shifted from the palm's origin to there.
+    v_rel = V_WO.translational() - V_WP.Shift(p_PO_W).translational()
+    w_rel = V_WO.rotational() - V_WP.rotational()
+    slip, spin = float(np.linalg.norm(v_rel)), float(np.linalg.norm(w_rel))
+    held = bool("palm" in touching and touching & _THUMB
+                and touching & _OPPOSING
+                and slip < HELD_SLIP_M_PER_S and spin < HELD_SPIN_RAD_PER_S)
+    return {"touching": sorted(touching), "held_by_contact": held,
+            "slip_m_per_s": round(slip, 4), "spin_rad_per_s": round(spin, 4)}
