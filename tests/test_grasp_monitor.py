@@ -13,6 +13,7 @@ from pydrake.systems.analysis import Simulator
 from regrasp_drake.grid import plan_object, run_map
 from regrasp_drake.station.catch_state_machine import Phase
 from regrasp_drake.station.grasp_monitor import DropReason, GraspMonitor, Outcome
+from regrasp_drake.station.scenario import load_scenario
 from regrasp_drake.world.robot import HAND_CLOSED, HAND_JOINTS
 from tests.fixtures import Row2Fixture
 
@@ -30,9 +31,11 @@ class SensorVerdictTest(Row2Fixture, unittest.TestCase):
     OFF_CENTRE_IR = [1000, 597, 361]
     SHORT_RAD = np.array([0.61, 0.0, 0.36, 0.0, 0.46, 0.0, 0.0, 0.0, 0.0, 0.0])
 
-    def verdict(self, ir_palm, bumper, short_rad, finger_speed=0.0):
-        m = self.scenario.monitor
-        monitor = GraspMonitor(self.scenario, 0, 1, RigidTransform(),
+    def verdict(self, ir_palm, bumper, short_rad, finger_speed=0.0,
+                scenario=None):
+        scenario = scenario or self.scenario
+        m = scenario.monitor
+        monitor = GraspMonitor(scenario, 0, 1, RigidTransform(),
                                object_clearance_m=0.05, watching=False)
         context = monitor.CreateDefaultContext()
         monitor.GetInputPort("ir_levels").FixValue(
@@ -63,6 +66,14 @@ class SensorVerdictTest(Row2Fixture, unittest.TestCase):
         # Neither of the paper's two sensors reads a grasp; the fingers do.
         self.assertEqual(self.verdict(self.OFF_CENTRE_IR, 0, self.SHORT_RAD),
                          (Outcome.CAUGHT, DropReason.NONE))
+
+    def test_paper_sensors_alone_miss_it(self):
+        # monitor.read_fingers false: the monitor the shipped maps were
+        # made with.
+        paper = load_scenario(text="{monitor: {read_fingers: false}}")
+        self.assertEqual(self.verdict(self.OFF_CENTRE_IR, 0, self.SHORT_RAD,
+                                      scenario=paper),
+                         (Outcome.DROPPED, DropReason.NOT_HELD))
 
     def test_fingers_without_the_palm_are_not_a_grasp(self):
         # Every finger stopped, but nothing within reach of a palm sensor.

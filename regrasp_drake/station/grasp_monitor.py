@@ -105,7 +105,8 @@ class GraspMonitor(LeafSystem):
         levels = self._ir.Eval(context)[:3]
         ir_grasp = bool(np.all(levels < m.palm_grasp_level))
         bumper = self._bumper.Eval(context)[0] > 0.5
-        fingers_grasp = (self._fingers_closed_on_object(context)
+        fingers_grasp = (m.read_fingers
+                         and self._fingers_closed_on_object(context)
                          and (bumper or levels.min() < m.palm_grasp_level))
         x[_IR_SINCE] = _since(x[_IR_SINCE], ir_grasp, t)
         x[_BUMPER_SINCE] = _since(x[_BUMPER_SINCE], bumper, t)
