@@ -215,9 +215,20 @@ def ending_counts(rows) -> dict:
     return counts
 
 
+def disagreements(rows: dict) -> dict:
+    """{cell: row} of the map rows whose grasp monitor's verdict (caught or
+    not) differs from the plant's contact results' (`held_by_contact`);
+    rows without the latter (older files, failed contact solves) are left
+    out."""
+    return {cell: row for cell, row in rows.items()
+            if row.get("held_by_contact") is not None
+            and (row["outcome"] == "caught") != row["held_by_contact"]}
+
+
 def format_map(rows: dict) -> str:
     """A ✓/✗ grid: rows h_catch (m), columns h_down (cm); ? not yet run;
-    then how many cells catch and how the others ended (`ending`)."""
+    then how many cells catch, how the others ended (`ending`), and the
+    cells where the contacts disagree with the monitor (`disagreements`)."""
     lines = ["h_catch m \\ h_down cm " + " ".join(f"{d * 100:>3.0f}"
                                                 for d in H_DOWN_VALUES)]
     for i, h_catch in enumerate(H_CATCH_VALUES):
@@ -233,4 +244,10 @@ def format_map(rows: dict) -> str:
     for key, n in counts.items():
         if key != "caught" and n:
             lines.append(f"  {n:>3} {ENDINGS[key]}")
+    differ = disagreements(rows)
+    if differ:
+        lines.append(f"{len(differ)} cell(s) where the contacts disagree with "
+                     "the grasp monitor (held by contact: "
+                     + ", ".join(f"{list(c)} {r['held_by_contact']}"
+                                 for c, r in sorted(differ.items())) + ")")
     return "\n".join(lines)

@@ -55,7 +55,7 @@ def nearest_cell(h_catch: float, h_down: float) -> tuple[int, int]:
 ENDINGS = {
     "caught": "caught",
     "in_fingers": "not held: in the fingers, no grasp recognized by the "
-                  "palm sensors or the bumper",
+                  "palm sensors, the bumper or the fingers' servos",
     "on_arm": "not held: at rest against the arm, no finger touching",
     "loose": "not held: neither in the fingers nor against the arm",
     "below_palm": "fell below the palm",

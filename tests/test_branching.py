@@ -82,7 +82,9 @@ class ReadEndingTest(unittest.TestCase):
         station.plant.get_contact_results_output_port.return_value \
             .Eval.side_effect = RuntimeError("contact solver failed")
         self.assertEqual(read_ending(station, mock.Mock(), "failed"),
-                         {"drop_reason": None, "touching": None})
+                         {"drop_reason": None, "touching": None,
+                          "held_by_contact": None, "slip_m_per_s": None,
+                          "spin_rad_per_s": None})
 
 
 if __name__ == "__main__":

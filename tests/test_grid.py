@@ -9,6 +9,7 @@ from regrasp_drake.errors import InputError
 from regrasp_drake.grid import (
     append_rows,
     check_resume,
+    disagreements,
     ending,
     ending_counts,
     format_map,
@@ -87,6 +88,20 @@ class TestGrid(unittest.TestCase):
         self.assertEqual(sum(counts.values()), len(cases))
         text = format_map({(0, j): r for j, (r, _) in enumerate(cases)})
         self.assertIn("1 not held: at rest against the arm", text)
+        self.assertNotIn("disagree", text)  # no contact verdicts in the rows
+
+    def test_disagreements_with_the_contacts(self):
+        rows = {(0, 0): {"outcome": "caught", "held_by_contact": True},
+                (0, 1): {"outcome": "dropped", "drop_reason": "not_held",
+                         "held_by_contact": True},
+                (0, 2): {"outcome": "caught", "held_by_contact": False},
+                (0, 3): {"outcome": "dropped", "drop_reason": "below_palm",
+                         "held_by_contact": False},
+                (0, 4): {"outcome": "failed", "held_by_contact": None}}
+        self.assertEqual(sorted(disagreements(rows)), [(0, 1), (0, 2)])
+        self.assertIn("2 cell(s) where the contacts disagree with the grasp "
+                      "monitor (held by contact: [0, 1] True, [0, 2] False)",
+                      format_map(rows))
 
 
 if __name__ == "__main__":

@@ -48,7 +48,8 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
     Returns one dict per entry, in order: h_catch, h_down, outcome,
     sim_time_s, catch_time_s, message, wall_s (the child's wall time, or the
     shared run's for cells that never triggered), p_WO_final (the object's
-    final position, m), drop_reason and touching (episode.read_ending).
+    final position, m), drop_reason, touching, held_by_contact, slip_m_per_s
+    and spin_rad_per_s (episode.read_ending).
     `on_result(i, row)` is called as each cell finishes. At most `workers`
     children run at once.
     `handoff`: (t_s, other scenario), to simulate up to t_s under `scenario`
@@ -101,7 +102,9 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
             message = "the simulation process died"
             results = [dict(outcome="failed", sim_time_s=None,
                             catch_time_s=None, message=message, wall_s=None,
-                            p_WO_final=None, drop_reason=None, touching=None)
+                            p_WO_final=None, drop_reason=None, touching=None,
+                            held_by_contact=None, slip_m_per_s=None,
+                            spin_rad_per_s=None)
                        for _ in indices]
         else:
             results = pickle.loads(data)

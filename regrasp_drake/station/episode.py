@@ -9,7 +9,11 @@ from pydrake.math import RigidTransform
 
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
-from regrasp_drake.station.grasp_monitor import GraspMonitor, Outcome
+from regrasp_drake.station.grasp_monitor import (
+    GraspMonitor,
+    Outcome,
+    contact_verdict,
+)
 from regrasp_drake.station.scenario import Scenario
 from regrasp_drake.station.station import build_station, initialize
 from regrasp_drake.world.objects import ObjectSpec
@@ -41,10 +45,14 @@ class EpisodeResult:
     message: str
     logs: Logs | None
     p_WO_final: list | None = None  # the object's final position, [m]
-    # Why a dropped episode counts as dropped (DropReason, lower case), and
-    # the bodies the object touches at the end (`read_ending`).
+    # Why a dropped episode counts as dropped (DropReason, lower case); the
+    # bodies the object touches at the end, whether they hold it, and its
+    # slip (m/s) and spin (rad/s) relative to the palm then (`read_ending`).
     drop_reason: str | None = None
     touching: list | None = None
+    held_by_contact: bool | None = None
+    slip_m_per_s: float | None = None
+    spin_rad_per_s: float | None = None
 
     @property
     def caught(self) -> bool:
@@ -58,6 +66,7 @@ class EpisodeResult:
             "wall_s": round(self.wall_s, 3),
             "catch_time_s": self.catch_time_s, "message": self.message,
             "drop_reason": self.drop_reason, "touching": self.touching,
+            "held_by_contact": self.held_by_contact,
         }
 
 
@@ -172,12 +181,15 @@ def read_outcome(station, context, message: str) -> tuple[str, float | None]:
 def read_ending(station, context, outcome: str) -> dict:
     """How the episode ended, beyond its outcome: `drop_reason`, which of
     the grasp monitor's tests made it dropped ("near_ground", "below_palm",
-    "not_held"; None unless dropped), and `touching`, the names of the
-    bodies in contact with the object in the final state, sorted (the
-    plant's contact results: a held object touches fingers and the palm;
-    one that came to rest on the palm against the arm touches the palm and
-    an arm link; None when they cannot be computed, as after a failed
-    contact solve). Reading them does not change the simulation."""
+    "not_held"; None unless dropped), and, from the plant's contact results
+    in the final state (grasp_monitor.contact_verdict), `touching`, the
+    names of the bodies in contact with the object, sorted (a held object
+    touches fingers and the palm; one that came to rest on the palm against
+    the arm touches the palm and an arm link), `held_by_contact`, whether
+    the contacts hold it, and the object's `slip_m_per_s` and
+    `spin_rad_per_s` relative to the palm. The contact fields are None when
+    they cannot be computed, as after a failed contact solve. Reading them
+    does not change the simulation."""
     reason = None
     if outcome == "dropped":
         monitor_state = station.monitor.GetOutputPort("monitor_state").Eval(
@@ -185,18 +197,16 @@ def read_ending(station, context, outcome: str) -> dict:
         reason = GraspMonitor.drop_reason(monitor_state).name.lower()
     plant = station.plant
     try:
-        results = plant.get_contact_results_output_port().Eval(
-            plant.GetMyContextFromRoot(context))
+        contacts = contact_verdict(
+            plant, plant.GetMyContextFromRoot(context), station.object_body,
+            plant.GetBodyByName("palm", station.hand))
     except Exception:  # the solve that ended the episode fails again
-        return {"drop_reason": reason, "touching": None}
-    me = station.object_body.index()
-    touching = set()
-    for i in range(results.num_point_pair_contacts()):
-        info = results.point_pair_contact_info(i)
-        a, b = info.bodyA_index(), info.bodyB_index()
-        if me in (a, b):
-            touching.add(plant.get_body(b if a == me else a).name())
-    return {"drop_reason": reason, "touching": sorted(touching)}
+        contacts = dict.fromkeys(_CONTACT_FIELDS)
+    return {"drop_reason": reason} | contacts
+
+
+_CONTACT_FIELDS = ("touching", "held_by_contact", "slip_m_per_s",
+                   "spin_rad_per_s")
 
 
 def _read_logs(station, context) -> Logs:

@@ -2,16 +2,24 @@
 
 Paper §V.B: the object is grasped when all palm infrared sensors read below a
 level for a sustained window, or the tactile bumper reads 1 for longer than a
-window. The episode's outcome:
-  caught   a grasp was recognized, and the object is still held (grasp
-           recognized again) `hold_s` after the hand is back at the grasp
-           position;
+window. Those two miss an object held off the palm's centre line (one palm
+ray passes beside it, and it rests on the palm beside the bumper:
+studies/grasp_monitor/FINDINGS.md), so a third sensor joins them, the finger
+servos' encoders: the object is also grasped when the thumb and another
+finger have stopped short of their goal on it while a palm sensor sees it,
+for a window. The episode's outcome:
+  caught   a grasp was recognized, and the object is still held (a grasp
+           sensor reads a grasp) `hold_s` after the hand is back at the
+           grasp position;
   dropped  the object fell below the palm, neared the ground, or was not held
            at the end of the hold (which of the three: `DropReason`);
   timeout  nothing decided by `max_time_s`;
   landed   (watching throws only) the object neared the ground.
 The simulator stops as soon as the outcome is known: the periodic update
 returns EventStatus.ReachedTermination.
+
+`contact_verdict`, below, is the check of the verdict: what the plant's
+contact results say is held (no sensor of a real hand gives them).
 """
 
 import enum
@@ -22,6 +30,7 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import EventStatus, LeafSystem
 
 from regrasp_drake.station.catch_state_machine import Phase
+from regrasp_drake.world.robot import FINGER_LINKS, FINGERS, HAND_JOINTS
 
 
 class Outcome(enum.IntEnum):
@@ -41,13 +50,20 @@ class DropReason(enum.IntEnum):
 
 
 # Discrete state layout.
-_OUTCOME, _IR_SINCE, _BUMPER_SINCE, _GRASP_T, _HOLD_T, _REASON = range(6)
+(_OUTCOME, _IR_SINCE, _BUMPER_SINCE, _GRASP_T, _HOLD_T, _REASON,
+ _FINGERS_SINCE) = range(7)
+_N_HAND = len(HAND_JOINTS)
+# The hand's joints of each finger (HAND_JOINTS order), the thumb first.
+_FINGER_JOINTS = [np.array([i for i, j in enumerate(HAND_JOINTS)
+                            if j.startswith(f + "_")]) for f in FINGERS]
 
 
 class GraspMonitor(LeafSystem):
-    """Inputs: `ir_levels` (13), `bumper` (1), `phase` (1), `body_poses`
-    (the plant's body poses). Output: `outcome` (1) and `grasped` (1: the
-    grasp is recognized now)."""
+    """Inputs: `ir_levels` (13), `bumper` (1), `hand_state` (the finger
+    joints' q then v, HAND_JOINTS order, 20), `hand_desired_state` (their
+    commanded q then v, 20), `phase` (1), `body_poses` (the plant's body
+    poses). Output: `monitor_state` (the discrete state; read it with the
+    static methods)."""
 
     def __init__(self, scenario, object_body_index, palm_body_index,
                  X_BP_palm, object_clearance_m: float, watching: bool):
@@ -64,11 +80,14 @@ class GraspMonitor(LeafSystem):
         self._watching = watching
         self._ir = self.DeclareVectorInputPort("ir_levels", 13)
         self._bumper = self.DeclareVectorInputPort("bumper", 1)
+        self._hand = self.DeclareVectorInputPort("hand_state", 2 * _N_HAND)
+        self._hand_goal = self.DeclareVectorInputPort("hand_desired_state",
+                                                      2 * _N_HAND)
         self._phase = self.DeclareVectorInputPort("phase", 1)
         self._poses = self.DeclareAbstractInputPort(
             "body_poses", AbstractValue.Make([RigidTransform()]))
         x0 = np.array([Outcome.RUNNING, -1.0, -1.0, -1.0, -1.0,
-                       DropReason.NONE])
+                       DropReason.NONE, -1.0])
         self._state = self.DeclareDiscreteState(x0)
         self.DeclarePeriodicDiscreteUpdateEvent(
             scenario.sensors.period_s, 0.0, self._update)
@@ -83,13 +102,19 @@ class GraspMonitor(LeafSystem):
         p_WO = poses[self._object].translation()
         X_WP = poses[self._palm] @ self._X_BP
 
-        ir_grasp = bool(np.all(self._ir.Eval(context)[:3] < m.palm_grasp_level))
+        levels = self._ir.Eval(context)[:3]
+        ir_grasp = bool(np.all(levels < m.palm_grasp_level))
         bumper = self._bumper.Eval(context)[0] > 0.5
-        x[_IR_SINCE] = (x[_IR_SINCE] if x[_IR_SINCE] >= 0 else t) if ir_grasp else -1
-        x[_BUMPER_SINCE] = ((x[_BUMPER_SINCE] if x[_BUMPER_SINCE] >= 0 else t)
-                            if bumper else -1)
+        fingers_grasp = (m.read_fingers
+                         and self._fingers_closed_on_object(context)
+                         and (bumper or levels.min() < m.palm_grasp_level))
+        x[_IR_SINCE] = _since(x[_IR_SINCE], ir_grasp, t)
+        x[_BUMPER_SINCE] = _since(x[_BUMPER_SINCE], bumper, t)
+        x[_FINGERS_SINCE] = _since(x[_FINGERS_SINCE], fingers_grasp, t)
         grasped = ((ir_grasp and t - x[_IR_SINCE] >= m.ir_window_s)
-                   or (bumper and t - x[_BUMPER_SINCE] >= m.bumper_window_s))
+                   or (bumper and t - x[_BUMPER_SINCE] >= m.bumper_window_s)
+                   or (fingers_grasp
+                       and t - x[_FINGERS_SINCE] >= m.finger_window_s))
         if grasped and phase >= Phase.LOWER and x[_GRASP_T] < 0:
             x[_GRASP_T] = t
         if phase == Phase.HOLD and x[_HOLD_T] < 0:
@@ -106,7 +131,7 @@ class GraspMonitor(LeafSystem):
                 X_WP.inverse() @ p_WO)[2] < -m.below_palm_m:
             outcome, reason = Outcome.DROPPED, DropReason.BELOW_PALM
         elif x[_HOLD_T] >= 0 and t - x[_HOLD_T] >= m.hold_s:
-            held = x[_GRASP_T] >= 0 and (ir_grasp or bumper)
+            held = x[_GRASP_T] >= 0 and (ir_grasp or bumper or fingers_grasp)
             outcome, reason = ((Outcome.CAUGHT, DropReason.NONE) if held else
                                (Outcome.DROPPED, DropReason.NOT_HELD))
         if outcome == Outcome.RUNNING and t >= m.max_time_s:
@@ -117,6 +142,22 @@ class GraspMonitor(LeafSystem):
         if outcome != Outcome.RUNNING:
             return EventStatus.ReachedTermination(self, outcome.name.lower())
         return EventStatus.Succeeded()
+
+    def _fingers_closed_on_object(self, context) -> bool:
+        """Whether the thumb and another finger have closed on something:
+        each stopped short of its goal (a joint more than finger_stall_rad
+        short of its commanded angle, toward closing) and at rest (every
+        joint slower than finger_rest_rad_per_s). With the robot's
+        self-collisions filtered, only the object stops a finger."""
+        hand = self._hand.Eval(context)
+        goal = self._hand_goal.Eval(context)
+        short = goal[:_N_HAND] - hand[:_N_HAND]
+        speed = np.abs(hand[_N_HAND:])
+        m = self._m
+        stopped = [short[j].max() > m.finger_stall_rad
+                   and speed[j].max() < m.finger_rest_rad_per_s
+                   for j in _FINGER_JOINTS]
+        return stopped[0] and any(stopped[1:])
 
     @staticmethod
     def outcome(monitor_state) -> Outcome:
@@ -129,3 +170,60 @@ class GraspMonitor(LeafSystem):
     @staticmethod
     def grasp_time(monitor_state) -> float:
         return float(monitor_state[_GRASP_T])
+
+
+def _since(since: float, on: bool, t: float) -> float:
+    """When a sensor's reading began to read a grasp: kept while it does,
+    set to t when it starts, -1 while it does not."""
+    return (since if since >= 0 else t) if on else -1.0
+
+
+# ---- the check: what the plant's contact results say is held ---------------
+# The object is held when, at the end of an episode, it touches the palm (its
+# box, bumper or pads), the thumb and at least one finger facing the thumb,
+# and moves with the palm: its origin slips slower than HELD_SLIP_M_PER_S and
+# it turns slower than HELD_SPIN_RAD_PER_S relative to the palm. (At the end
+# of the hold the hand is at rest; a falling or rolling object moves at
+# decimetres per second.)
+HELD_SLIP_M_PER_S = 0.02
+HELD_SPIN_RAD_PER_S = 0.5
+_THUMB = frozenset(FINGER_LINKS["thumb"])
+_OPPOSING = frozenset(b for f, links in FINGER_LINKS.items() if f != "thumb"
+                      for b in links)
+
+
+def contact_verdict(plant, plant_context, object_body, palm_body) -> dict:
+    """What the plant's contact results say of the object now (the check of
+    the grasp monitor's verdict, not a sensor: no real hand has them).
+
+    Returns `touching`, the names of the bodies in contact with the object,
+    sorted; `slip_m_per_s` and `spin_rad_per_s`, the speed of the object's
+    origin and its angular speed relative to the palm body; and
+    `held_by_contact`, whether it is held: touching the palm, the thumb and
+    another finger, slip and spin below HELD_SLIP_M_PER_S and
+    HELD_SPIN_RAD_PER_S. Raises what the plant raises when the contact
+    results cannot be computed (after a failed contact solve)."""
+    results = plant.get_contact_results_output_port().Eval(plant_context)
+    me = object_body.index()
+    touching = set()
+    for i in range(results.num_point_pair_contacts()):
+        info = results.point_pair_contact_info(i)
+        a, b = info.bodyA_index(), info.bodyB_index()
+        if me in (a, b):
+            touching.add(plant.get_body(b if a == me else a).name())
+    V_WO = plant.EvalBodySpatialVelocityInWorld(plant_context, object_body)
+    V_WP = plant.EvalBodySpatialVelocityInWorld(plant_context, palm_body)
+    p_PO_W = (plant.EvalBodyPoseInWorld(plant_context, object_body)
+              .translation()
+              - plant.EvalBodyPoseInWorld(plant_context, palm_body)
+              .translation())
+    # The velocity of the palm-fixed point at the object's origin: V_WP
+    # shifted from the palm's origin to there.
+    v_rel = V_WO.translational() - V_WP.Shift(p_PO_W).translational()
+    w_rel = V_WO.rotational() - V_WP.rotational()
+    slip, spin = float(np.linalg.norm(v_rel)), float(np.linalg.norm(w_rel))
+    held = bool("palm" in touching and touching & _THUMB
+                and touching & _OPPOSING
+                and slip < HELD_SLIP_M_PER_S and spin < HELD_SPIN_RAD_PER_S)
+    return {"touching": sorted(touching), "held_by_contact": held,
+            "slip_m_per_s": round(slip, 4), "spin_rad_per_s": round(spin, 4)}

@@ -248,6 +248,26 @@ class MonitorConfig:
     palm_grasp_level: int = 700
     ir_window_s: float = 0.15
     bumper_window_s: float = 0.15
+    # Or when the fingers have closed on the object: the thumb and another
+    # finger stopped short of their goal (a joint more than
+    # `finger_stall_rad` short of its commanded angle, every joint of the
+    # finger slower than `finger_rest_rad_per_s`) while a palm sensor sees
+    # the object (an infrared sensor below `palm_grasp_level`, or the
+    # bumper), for `finger_window_s`. An object held off the palm's centre
+    # line, which one of the three palm rays misses, is recognized so.
+    # 0.01 rad is 0.07 N·m of servo load (kp = 7 N·m/rad); a finger closed
+    # on nothing stands within 0.001 rad of its goal, one pressing on the
+    # object 0.02 rad or more short. 0.5 rad/s is a tenth of the servos'
+    # speed: a finger closing freely moves at 5.8 rad/s; fingers pressing on
+    # an object that settles in the hand move at a few tenths of a rad/s
+    # for a while (Drake's Allegro example calls a finger stuck below 0.07
+    # rad/s, which such settling resets; studies/grasp_monitor/FINDINGS.md).
+    # false: the paper's two sensors alone, the monitor the shipped maps,
+    # data set and tables were made with (until they are rebuilt).
+    read_fingers: bool = True
+    finger_stall_rad: float = 0.01
+    finger_rest_rad_per_s: float = 0.5
+    finger_window_s: float = 0.15
     # After the hand is back at the grasp position, the object must still be
     # held this long for the catch to count, [s].
     hold_s: float = 0.25
@@ -452,6 +472,11 @@ def validate(s: Scenario) -> Scenario:
     _in_range("monitor.palm_grasp_level", m.palm_grasp_level, 0, n.levels)
     _in_range("monitor.ir_window_s", m.ir_window_s, 0.0, 2.0, " s")
     _in_range("monitor.bumper_window_s", m.bumper_window_s, 0.0, 2.0, " s")
+    _in_range("monitor.finger_stall_rad", m.finger_stall_rad, 0.0, 1.0,
+              " rad")
+    _in_range("monitor.finger_rest_rad_per_s", m.finger_rest_rad_per_s, 0.0,
+              5.0, " rad/s")
+    _in_range("monitor.finger_window_s", m.finger_window_s, 0.0, 2.0, " s")
     _in_range("monitor.hold_s", m.hold_s, 0.0, 5.0, " s")
     _in_range("monitor.below_palm_m", m.below_palm_m, 0.0, 1.0, " m")
     _in_range("monitor.ground_clearance_m", m.ground_clearance_m, 0.0, 1.0, " m")

@@ -216,6 +216,10 @@ def build_station(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
         obj.bounding_radius, watching=watching))
     builder.Connect(ir.GetOutputPort("ir_levels"), monitor.GetInputPort("ir_levels"))
     builder.Connect(bumper.GetOutputPort("bumper"), monitor.GetInputPort("bumper"))
+    builder.Connect(plant.get_state_output_port(instances.hand),
+                    monitor.GetInputPort("hand_state"))
+    builder.Connect(machine.GetOutputPort("hand_desired_state"),
+                    monitor.GetInputPort("hand_desired_state"))
     builder.Connect(machine.GetOutputPort("phase"), monitor.GetInputPort("phase"))
     builder.Connect(plant.get_body_poses_output_port(),
                     monitor.GetInputPort("body_poses"))
