@@ -262,9 +262,10 @@ class MonitorConfig:
     # an object that settles in the hand move at a few tenths of a rad/s
     # for a while (Drake's Allegro example calls a finger stuck below 0.07
     # rad/s, which such settling resets; studies/grasp_monitor/FINDINGS.md).
-    # false: the paper's two sensors alone, the monitor the shipped maps,
-    # data set and tables were made with (until they are rebuilt).
-    read_fingers: bool = True
+    # false (the default until the maps, data set and tables are rebuilt,
+    # so that the shipped ones reproduce): the paper's two sensors alone.
+    # The palm toss's scenarios (studies/palm_toss) set it true.
+    read_fingers: bool = False
     finger_stall_rad: float = 0.01
     finger_rest_rad_per_s: float = 0.5
     finger_window_s: float = 0.15
