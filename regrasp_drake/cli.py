@@ -20,7 +20,12 @@ import tempfile
 import time
 from pathlib import Path
 
-from regrasp_drake.errors import InputError, check_output_path, quote
+from regrasp_drake.errors import (
+    InputError,
+    check_output_path,
+    note_interrupt,
+    quote,
+)
 
 
 def _add_object_args(p: argparse.ArgumentParser) -> None:
@@ -918,8 +923,10 @@ def main(argv=None) -> int:
     def on_sigint(signum, frame):
         if os.getpid() != main_pid:
             _interrupted_in_a_worker(signum, frame)
+        note_interrupt()
         raise KeyboardInterrupt
 
+    note_interrupt(False)
     previous = signal.getsignal(signal.SIGINT)
     if previous is signal.default_int_handler:
         signal.signal(signal.SIGINT, on_sigint)

@@ -62,3 +62,23 @@ def check_output_path(flag: str, path, *, makes_directory: bool = False) -> None
         raise InputError(f"{flag}: got {str(path)!r}, expected a path "
                          f"under a writable directory ({str(directory)!r}"
                          " is not one)")
+
+
+# Ctrl-C, remembered: Python runs its SIGINT handler wherever the main
+# thread is, and a KeyboardInterrupt raised inside a hook that ignores
+# exceptions (os.fork's at-fork hooks, logging's among them) is lost. The
+# command's handler records it here; long loops call `check_interrupt` at
+# safe points, so that a lost one is raised again there.
+_interrupted = False
+
+
+def note_interrupt(pressed: bool = True) -> None:
+    """Records Ctrl-C (or, with False, forgets it: a new command starts)."""
+    global _interrupted
+    _interrupted = pressed
+
+
+def check_interrupt() -> None:
+    """Raises KeyboardInterrupt if Ctrl-C was pressed in this process."""
+    if _interrupted:
+        raise KeyboardInterrupt

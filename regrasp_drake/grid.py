@@ -16,7 +16,7 @@ from pathlib import Path
 
 import torch
 
-from regrasp_drake.errors import InputError
+from regrasp_drake.errors import InputError, check_interrupt
 from regrasp_drake.input_files import load_json
 from regrasp_drake.map_rows import open_rows, plan_path, read_rows
 from regrasp_drake.parameter_space import (  # noqa: F401 (nearest_cell: re-exported)
@@ -67,6 +67,7 @@ def append_rows(function, tasks, path: Path, done: dict, key, *,
     ctx = multiprocessing.get_context("fork")
     with ctx.Pool(workers) as pool, open_rows(path) as f:
         for n, row in enumerate(pool.imap(function, tasks), 1):
+            check_interrupt()
             f.write(json.dumps(row) + "\n")
             f.flush()
             done[key(row)] = row

@@ -28,6 +28,7 @@ import time
 
 import numpy as np
 
+from regrasp_drake.errors import check_interrupt
 from regrasp_drake.station.catch_state_machine import Phase
 from regrasp_drake.station.episode import (
     advance_to_outcome,
@@ -98,6 +99,7 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
         os.waitpid(pid, 0)
         os.close(fd)
         del children[pid]
+        check_interrupt()
         if not data:
             message = "the simulation process died"
             results = [dict(outcome="failed", sim_time_s=None,
@@ -140,11 +142,13 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
         os.close(write_fd)
         children[pid] = (read_fd, group)
         signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+        check_interrupt()  # one that another thread took, lost in the fork
 
     try:
         message = ""
         k = round(context.get_time() / period)  # 0, or the handoff's sample
         while waiting:
+            check_interrupt()
             k += 1
             message = advance_to_outcome(simulator, station, scenario,
                                          min(k * period, t_final))
