@@ -542,7 +542,7 @@ class InterruptTest(unittest.TestCase):
             [sys.executable, "-m", "regrasp_drake.cli", "grid", "--object",
              "table1-row2", "--out", str(out), "--workers", "1"],
             stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-            start_new_session=True)
+            start_new_session=True, preexec_fn=_default_sigint)
         deadline = time.monotonic() + 180
         while not (out.exists() and out.read_bytes().count(b"\n") >= rows):
             if process.poll() is not None or time.monotonic() > deadline:
@@ -557,6 +557,13 @@ class InterruptTest(unittest.TestCase):
         self.assertIn("grid: interrupted; what was written so far is kept",
                       lines[0])
         return out.read_bytes()
+
+
+def _default_sigint():
+    """SIGINT's default action, as a terminal's foreground command has it: a
+    test run started in the background of a non-interactive shell (`cmd &`,
+    `nohup`) inherits SIGINT ignored, and a command rightly keeps that."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _no_work(args):
