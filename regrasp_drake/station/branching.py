@@ -196,9 +196,12 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
             try:
                 os.kill(pid, signal.SIGKILL)
                 os.waitpid(pid, 0)
-            except ChildProcessError:
+            except (ChildProcessError, ProcessLookupError):
                 pass  # reaped already
-            os.close(fd)
+            try:
+                os.close(fd)
+            except OSError:
+                pass  # closed already (interrupted in `finish`)
         raise
     return rows
 
