@@ -228,6 +228,12 @@ class CatchConfig:
     palm_stop_level: int = 600
     # Duration of the return from the lowered to the grasp position, [s].
     return_s: float = 0.3
+    # false (the paper's Fig. 9): the return starts from rest where the
+    # lowering stopped, so the hand stops dead as the object lands. true:
+    # it takes over from the lowering's moving state (position, velocity,
+    # acceleration), so the hand goes on down as the object lands and turns
+    # back smoothly within return_s, a cushion.
+    return_from_motion: bool = False
     # Where (h_catch, h_down) come from: "fixed" (the two values below) or
     # "mlp" (the network in `weights`).
     parameter_source: str = "fixed"
