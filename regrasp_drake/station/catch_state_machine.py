@@ -56,6 +56,7 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.palm_toss import TossDesign, toss_trajectory
+from regrasp_drake.world.robot import HAND_JOINTS
 
 
 class Phase(enum.IntEnum):
@@ -154,6 +155,18 @@ def quintic_from(tau, T, q0, v0, a0, q1):
     return q, dq / T, ddq / (T * T)
 
 
+def preshape_closures(catch) -> np.ndarray:
+    """The fingers' pre-shape, per hand joint (HAND_JOINTS order: each
+    finger's knuckle j1 then distal j2), as a fraction of the closed
+    posture: catch.preshape_closure for the knuckles, and for the distal
+    joints catch.preshape_distal_closure (None: the knuckles')."""
+    distal = catch.preshape_distal_closure
+    closures = np.full(len(HAND_JOINTS), float(catch.preshape_closure))
+    if distal is not None:
+        closures[1::2] = distal
+    return closures
+
+
 def _quintic(tau):
     """Time law s(τ), s'(τ), s''(τ) with zero end velocity and acceleration."""
     tau = min(max(tau, 0.0), 1.0)
@@ -188,7 +201,7 @@ class CatchStateMachine(LeafSystem):
         self._toss = scenario.throw.kind == "palm_toss"
         self._hold = self._open + scenario.throw.hold_closure * (
             self._closed - self._open)
-        self._preshape = self._open + scenario.catch.preshape_closure * (
+        self._preshape = self._open + preshape_closures(scenario.catch) * (
             self._closed - self._open)
         self._speed = finger_speed_rad_per_s
         self._cushion = scenario.catch.return_from_motion
