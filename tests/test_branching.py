@@ -78,10 +78,10 @@ class ReadEndingTest(unittest.TestCase):
     def test_contacts_that_cannot_be_computed_read_none(self):
         # After a failed contact solve, evaluating the contact results
         # fails again: the ending has no contacts instead of raising.
-        station = mock.Mock()
-        station.plant.get_contact_results_output_port.return_value \
+        episode = mock.Mock()
+        episode.station.plant.get_contact_results_output_port.return_value \
             .Eval.side_effect = RuntimeError("contact solver failed")
-        self.assertEqual(read_ending(station, mock.Mock(), "failed"),
+        self.assertEqual(read_ending(episode, mock.Mock(), "failed"),
                          {"drop_reason": None, "touching": None,
                           "held_by_contact": None, "slip_m_per_s": None,
                           "spin_rad_per_s": None})

@@ -305,10 +305,11 @@ class Scenario:
         default_factory=SimulatorConfig)
     # The robot's model directives (default: sdf/puma560_hand.dmd.yaml, the
     # PUMA welded to the world, the hand to its flange); they must add the
-    # models "puma560" and "hand". The arm's inverse-dynamics and inverse-
-    # kinematics plants are built from the shipped directives whatever these
-    # say: a list that moves the arm or the hand's mount is planned and
-    # controlled as the shipped robot.
+    # models "puma560" and "hand", the hand welded to a link of the arm. The
+    # arm-only plant of the inverse-dynamics controller and of the inverse
+    # kinematics is built from these too (robot.make_arm_control_plant), so
+    # a list that moves the arm or the hand's mount is planned and
+    # controlled as the robot it builds (ArmIk(scenario.directives)).
     directives: list[ModelDirective] = dc.field(
         default_factory=robot_directives)
     # Gravity's magnitude, pointing along -z, [m/s²].
