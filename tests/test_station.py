@@ -25,6 +25,7 @@ from regrasp_drake.station.replay import (
     save_html,
 )
 from regrasp_drake.station.scenario import load_scenario
+from regrasp_drake.station.station import build_episode_diagram, build_station
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world import robot
 from regrasp_drake.world.objects import load_catalogue
@@ -196,6 +197,53 @@ def _rotation(quaternion_wxyz):
     q = np.asarray(quaternion_wxyz, float)
     return RotationMatrix(Quaternion(q / np.linalg.norm(q))).matrix()
 
+
+
+class TestStationPorts(unittest.TestCase):
+    """The station is a diagram with named ports; the catch controller is
+    wired to them from outside."""
+
+    @classmethod
+    def setUpClass(cls):
+        _setup(cls)
+        cls.station = build_station(cls.scenario, cls.obj)
+
+    def test_exported_ports(self):
+        diagram = self.station.diagram
+        self.assertEqual(
+            sorted(diagram.get_input_port(i).get_name()
+                   for i in range(diagram.num_input_ports())),
+            ["arm_desired_acceleration", "arm_desired_state",
+             "hand_desired_state"])
+        self.assertEqual(
+            sorted(diagram.get_output_port(i).get_name()
+                   for i in range(diagram.num_output_ports())),
+            ["arm_state", "body_poses", "bumper", "contact_results",
+             "hand_state", "ir_levels", "net_actuation", "object_state",
+             "query_object"])
+        # The catch controller lives outside the station.
+        for name in ("catch_state_machine", "grasp_monitor", "X_WG",
+                     "catch_parameters"):
+            self.assertFalse(diagram.HasSubsystemNamed(name), name)
+
+    def test_ports_read_the_plant(self):
+        context = self.station.diagram.CreateDefaultContext()
+        plant = self.station.plant
+        plant_context = plant.GetMyMutableContextFromRoot(context)
+        plant.SetFreeBodyPose(plant_context, self.station.object_body,
+                              self.station.X_WO_initial)
+        state = self.station.diagram.GetOutputPort("object_state").Eval(context)
+        np.testing.assert_array_equal(
+            state[4:7], self.station.X_WO_initial.translation())
+        self.assertEqual(len(self.station.diagram.GetOutputPort("arm_state")
+                             .Eval(context)), 12)
+
+    def test_inverse_kinematics_of_other_directives_refused(self):
+        other = robot.robot_directives()
+        other[0].add_model.default_joint_positions = {"joint1": [0.1]}
+        with self.assertRaisesRegex(ValueError, "ArmIk"):
+            build_episode_diagram(self.scenario, self.obj, ik=ArmIk(other),
+                                  X_WG=None)
 
 if __name__ == "__main__":
     unittest.main()

@@ -64,13 +64,13 @@ class ArmIk:
         self._context = self._plant.CreateDefaultContext()
         self._frame6 = self._plant.GetFrameByName("link6")
         self._X_6P = palm_in_flange(self._directives)
+        self._lower = self._plant.GetPositionLowerLimits()
+        self._upper = self._plant.GetPositionUpperLimits()
 
     @property
     def directives(self) -> list[ModelDirective]:
         """The robot's model directives this was built for."""
         return self._directives
-        self._lower = self._plant.GetPositionLowerLimits()
-        self._upper = self._plant.GetPositionUpperLimits()
 
     @property
     def plant(self) -> MultibodyPlant:
