@@ -340,12 +340,16 @@ class RayEntryTest(unittest.TestCase):
         bounding sphere about its frame origin read nothing, uncomputed)
         gives the readings of casting every ray, for an L-shaped object in
         random poses around the palm."""
+        from pydrake.systems.framework import DiagramBuilder
+
         from regrasp_drake.station.scenario import load_scenario
-        from regrasp_drake.station.station import build_station
+        from regrasp_drake.station.station import add_station
         from regrasp_drake.world.objects import resolve_object
         scenario = load_scenario()
         obj = resolve_object(name="table1-row4")
-        station = build_station(scenario, obj)
+        builder = DiagramBuilder()
+        station = add_station(builder, scenario, obj)
+        diagram = builder.Build()
         plant = station.plant
         scene_graph, bounded = station.scene_graph, station.infrared
         unbounded = InfraredSensors(
@@ -354,7 +358,7 @@ class RayEntryTest(unittest.TestCase):
             list(plant.GetCollisionGeometriesForBody(station.object_body)),
             bounded.ranges_m(), period_s=scenario.sensors.period_s,
             levels=bounded.levels(), inspector=scene_graph.model_inspector())
-        context = station.diagram.CreateDefaultContext()
+        context = diagram.CreateDefaultContext()
         plant_context = plant.GetMyMutableContextFromRoot(context)
         X_WP = plant.GetFrameByName("palm_surface", station.hand).CalcPoseInWorld(
             plant_context)

@@ -77,10 +77,10 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
         simulator = continue_with(simulator, episode, other, later)
         episode, scenario = other, later
     source = episode.controller.parameters
-    ir_levels = episode.station.diagram.GetOutputPort("ir_levels")
+    ir_levels = episode.station.GetOutputPort("ir_levels")
     machine = episode.controller.state_machine
     context = simulator.get_mutable_context()
-    station_context = episode.station.diagram.GetMyContextFromRoot(context)
+    ir_context = ir_levels.get_system().GetMyContextFromRoot(context)
     machine_context = machine.GetMyContextFromRoot(context)
     source_context = source.GetMyMutableContextFromRoot(context)
 
@@ -159,7 +159,7 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
             if phase != Phase.WAIT:
                 continue
             # What the state machine's check at this time will read.
-            distance = (float(np.min(ir_levels.Eval(station_context)[3:]))
+            distance = (float(np.min(ir_levels.Eval(ir_context)[3:]))
                         / levels * approach_range)
             triggered = []
             while waiting and distance < waiting[0]:

@@ -147,8 +147,7 @@ def _plan_at_release(simulator, episode: EpisodeDiagram, scenario,
     simulator.AdvanceTo(t)
     context = simulator.get_mutable_context()
     station, controller = episode.station, episode.controller
-    state = station.diagram.GetOutputPort("object_state").Eval(
-        station.diagram.GetMyContextFromRoot(context))
+    state = station.Eval("object_state", context)
     X_WG, parameters = at_release(np.asarray(state).copy(), t)
     grasp = controller.grasp_pose
     grasp.set_pose(grasp.GetMyMutableContextFromRoot(context), X_WG)

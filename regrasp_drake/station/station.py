@@ -1,7 +1,7 @@
 """The throw-and-catch station, and the catch controller wired to it.
 
-`build_station`: a Diagram with named ports, as Drake's hardware stations
-are: PUMA 560 + hand + object in a MultibodyPlant with point contact; an
+`add_station`: the station, with named ports as Drake's hardware stations
+have: PUMA 560 + hand + object in a MultibodyPlant with point contact; an
 inverse-dynamics controller for the arm on its own arm-only plant; PD servos
 for the fingers (in the plant when it is discrete; on a continuous plant,
 which Drake's in-plant PD does not support, the same PD outside it, see
@@ -45,7 +45,14 @@ from pydrake.systems.analysis import (
     Simulator,
 )
 from pydrake.systems.controllers import InverseDynamicsController
-from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.framework import (
+    Context,
+    Diagram,
+    DiagramBuilder,
+    InputPort,
+    LeafSystem,
+    OutputPort,
+)
 from pydrake.systems.primitives import (
     ConstantVectorSource,
     LogVectorOutput,
@@ -110,9 +117,9 @@ class GraspPoseSource(LeafSystem):
 
 @dc.dataclass
 class Station:
-    """The station's diagram (see `build_station` for its ports) and handles
-    into it."""
-    diagram: Diagram
+    """The station's systems in an episode's diagram and its ports by name
+    (see `add_station`), read as a hardware station Diagram's exported
+    ports are: `GetInputPort(name)`, `GetOutputPort(name)`."""
     plant: MultibodyPlant
     scene_graph: SceneGraph
     arm: ModelInstanceIndex
@@ -121,6 +128,26 @@ class Station:
     infrared: InfraredSensors
     bumper: TactileBumper
     X_WO_initial: RigidTransform  # the object's pose in the open palm
+    inputs: dict[str, InputPort]
+    outputs: dict[str, OutputPort]
+
+    def GetInputPort(self, name: str) -> InputPort:
+        return _port(self.inputs, name, "input")
+
+    def GetOutputPort(self, name: str) -> OutputPort:
+        return _port(self.outputs, name, "output")
+
+    def Eval(self, name: str, root_context: Context):
+        """The value of the output port `name` in the diagram's context."""
+        port = self.GetOutputPort(name)
+        return port.Eval(port.get_system().GetMyContextFromRoot(root_context))
+
+
+def _port(ports: dict, name: str, kind: str):
+    if name not in ports:
+        raise KeyError(f"the station has no {kind} port {name!r}; expected "
+                       f"one of {sorted(ports)}")
+    return ports[name]
 
 
 @dc.dataclass
@@ -149,7 +176,7 @@ class Loggers:
 @dc.dataclass
 class EpisodeDiagram:
     """One episode's diagram: the station, the catch controller wired to
-    it, the loggers and Meshcat."""
+    its ports, the loggers and Meshcat."""
     diagram: Diagram
     station: Station
     controller: CatchController
@@ -157,21 +184,26 @@ class EpisodeDiagram:
     meshcat: Meshcat | None
 
 
-def build_station(scenario: Scenario, obj: ObjectSpec) -> Station:
-    """The station, a Diagram named "station", as Drake's hardware
-    stations are: the plant (PUMA + hand + `obj`) and its scene graph, the
-    arm's inverse-dynamics controller (on an arm-only plant built from the
-    scenario's directives), the fingers' PD servos (in the plant when it is
-    discrete, beside it when continuous), the 13 infrared sensors and the
-    tactile bumper.
+def add_station(builder: DiagramBuilder, scenario: Scenario,
+                obj: ObjectSpec) -> Station:
+    """Adds the station to `builder`: the plant (PUMA + hand + `obj`) and
+    its scene graph, the arm's inverse-dynamics controller (on an arm-only
+    plant built from the scenario's directives), the fingers' PD servos (in
+    the plant when it is discrete, beside it when continuous), the 13
+    infrared sensors and the tactile bumper. Whatever drives it (the catch
+    controller, or another) is wired to the returned Station's named ports:
 
     Input ports: `arm_desired_state` (q, v: 12), `arm_desired_acceleration`
     (6), `hand_desired_state` (the finger joints' q, v: 20).
     Output ports: `arm_state` (12), `hand_state` (20), `object_state` (13:
     quaternion wxyz, p_WO, w_WO, v_WO), `body_poses`, `contact_results`,
     `query_object`, `ir_levels` (13), `bumper` (1), `net_actuation` (16,
-    [N·m])."""
-    builder = DiagramBuilder()
+    [N·m]).
+
+    The station's systems go into the episode's own builder, not into a
+    Diagram of their own as manipulation's MakeHardwareStation does: Drake's
+    CENIC integrator (a continuous plant) needs the MultibodyPlant as a
+    direct child, named "plant", of the diagram it simulates."""
     # The physics: PUMA + hand, the object, the ground (see add_world).
     plant, scene_graph, instances, object_body, object_geometries = (
         add_world(builder, scenario, obj))
@@ -186,18 +218,13 @@ def build_station(scenario: Scenario, obj: ObjectSpec) -> Station:
                     arm_controller.get_input_port_estimated_state())
     builder.Connect(arm_controller.get_output_port_control(),
                     plant.get_actuation_input_port(instances.arm))
-    builder.ExportInput(arm_controller.get_input_port_desired_state(),
-                        "arm_desired_state")
-    builder.ExportInput(arm_controller.get_input_port_desired_acceleration(),
-                        "arm_desired_acceleration")
 
     # The fingers: PD servos in the plant, or beside a continuous one.
     if plant.time_step() > 0:
-        builder.ExportInput(plant.get_desired_state_input_port(instances.hand),
-                            "hand_desired_state")
+        hand_desired_state = plant.get_desired_state_input_port(instances.hand)
     else:
         servos = add_finger_servos(builder, plant, instances.hand)
-        builder.ExportInput(servos.get_input_port(0), "hand_desired_state")
+        hand_desired_state = servos.get_input_port(0)
 
     # Sensors: 13 infrared range sensors and the tactile bumper.
     s = scenario.sensors
@@ -216,26 +243,31 @@ def build_station(scenario: Scenario, obj: ObjectSpec) -> Station:
     builder.Connect(plant.get_contact_results_output_port(),
                     bumper.GetInputPort("contact_results"))
 
-    # What the station shows the world.
-    for port, name in (
-            (plant.get_state_output_port(instances.arm), "arm_state"),
-            (plant.get_state_output_port(instances.hand), "hand_state"),
-            (plant.get_state_output_port(object_body.model_instance()),
-             "object_state"),
-            (plant.get_body_poses_output_port(), "body_poses"),
-            (plant.get_contact_results_output_port(), "contact_results"),
-            (plant.get_net_actuation_output_port(), "net_actuation"),
-            (scene_graph.get_query_output_port(), "query_object"),
-            (ir.GetOutputPort("ir_levels"), "ir_levels"),
-            (bumper.GetOutputPort("bumper"), "bumper")):
-        builder.ExportOutput(port, name)
-    diagram = builder.Build()
-    diagram.set_name("station")
+    # What drives the station, and what it shows.
+    inputs = {
+        "arm_desired_state": arm_controller.get_input_port_desired_state(),
+        "arm_desired_acceleration":
+            arm_controller.get_input_port_desired_acceleration(),
+        "hand_desired_state": hand_desired_state,
+    }
+    outputs = {
+        "arm_state": plant.get_state_output_port(instances.arm),
+        "hand_state": plant.get_state_output_port(instances.hand),
+        "object_state": plant.get_state_output_port(
+            object_body.model_instance()),
+        "body_poses": plant.get_body_poses_output_port(),
+        "contact_results": plant.get_contact_results_output_port(),
+        "net_actuation": plant.get_net_actuation_output_port(),
+        "query_object": scene_graph.get_query_output_port(),
+        "ir_levels": ir.GetOutputPort("ir_levels"),
+        "bumper": bumper.GetOutputPort("bumper"),
+    }
     return Station(
-        diagram=diagram, plant=plant, scene_graph=scene_graph,
-        arm=instances.arm, hand=instances.hand, object_body=object_body,
-        infrared=ir, bumper=bumper,
-        X_WO_initial=_initial_object_pose(plant, instances, obj, scenario))
+        plant=plant, scene_graph=scene_graph, arm=instances.arm,
+        hand=instances.hand, object_body=object_body, infrared=ir,
+        bumper=bumper,
+        X_WO_initial=_initial_object_pose(plant, instances, obj, scenario),
+        inputs=inputs, outputs=outputs)
 
 
 def add_catch_controller(builder: DiagramBuilder, station: Station,
@@ -248,7 +280,6 @@ def add_catch_controller(builder: DiagramBuilder, station: Station,
     pose, the catch state machine (Fig. 9) and the grasp monitor (paper
     §V.B), which stops the simulation at the outcome. Arguments as
     `build_episode_diagram`'s."""
-    station_system = station.diagram
     # The catch parameters: fixed, or predicted by the MLP.
     if catch_parameters is not None:
         params = builder.AddNamedSystem(
@@ -273,16 +304,16 @@ def add_catch_controller(builder: DiagramBuilder, station: Station,
     grasp = builder.AddNamedSystem("X_WG", GraspPoseSource(
         X_WG if X_WG is not None else RigidTransform()))
     builder.Connect(grasp.get_output_port(), machine.GetInputPort("X_WG"))
-    builder.Connect(station_system.GetOutputPort("ir_levels"),
+    builder.Connect(station.GetOutputPort("ir_levels"),
                     machine.GetInputPort("ir_levels"))
     builder.Connect(params.get_output_port(),
                     machine.GetInputPort("catch_parameters"))
-    builder.Connect(station_system.GetOutputPort("arm_state"),
+    builder.Connect(station.GetOutputPort("arm_state"),
                     machine.GetInputPort("arm_state"))
     for name in ("arm_desired_state", "arm_desired_acceleration",
                  "hand_desired_state"):
         builder.Connect(machine.GetOutputPort(name),
-                        station_system.GetInputPort(name))
+                        station.GetInputPort(name))
 
     # The grasp monitor (paper §V.B); it stops the simulation at the outcome.
     plant = station.plant
@@ -293,7 +324,7 @@ def add_catch_controller(builder: DiagramBuilder, station: Station,
         .GetFixedPoseInBodyFrame(),
         obj.bounding_radius, watching=watching))
     for name in ("ir_levels", "bumper", "hand_state", "body_poses"):
-        builder.Connect(station_system.GetOutputPort(name),
+        builder.Connect(station.GetOutputPort(name),
                         monitor.GetInputPort(name))
     builder.Connect(machine.GetOutputPort("hand_desired_state"),
                     monitor.GetInputPort("hand_desired_state"))
@@ -326,8 +357,7 @@ def build_episode_diagram(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
                          "ArmIk(scenario.directives)")
     builder = DiagramBuilder()
     # The station: plant, arm controller, finger servos, sensors.
-    station = build_station(scenario, obj)
-    builder.AddSystem(station.diagram)
+    station = add_station(builder, scenario, obj)
     # The catch controller, wired to the station's ports.
     controller = add_catch_controller(
         builder, station, scenario, obj, ik=ik, X_WG=X_WG,
@@ -337,7 +367,7 @@ def build_episode_diagram(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
     # Loggers, sampled at the sensors' rate.
     def log(port):
         return LogVectorOutput(port, builder, scenario.sensors.period_s)
-    out = station.diagram.GetOutputPort
+    out = station.GetOutputPort
     loggers = Loggers(
         object=log(out("object_state")), ir=log(out("ir_levels")),
         bumper=log(out("bumper")),
@@ -558,9 +588,8 @@ def continue_with(simulator: Simulator, episode: EpisodeDiagram,
     ApplySimulatorConfig(scenario.simulator_config, target)
     context = target.get_mutable_context()
     context.SetTime(source.get_time())
-    pairs = zip(_leaf_systems(episode.diagram), _leaf_systems(other.diagram),
-                strict=True)
-    for a, b in pairs:
+    for a, b in zip(episode.diagram.GetSystems(), other.diagram.GetSystems(),
+                    strict=True):
         if type(a) is not type(b):
             raise ValueError(f"continue_with: {a.get_name()} and "
                              f"{b.get_name()}: not diagrams built alike")
@@ -580,13 +609,3 @@ def continue_with(simulator: Simulator, episode: EpisodeDiagram,
     target.Initialize(InitializeParams(suppress_initialization_events=True))
     return target
 
-
-def _leaf_systems(diagram: Diagram) -> list:
-    """The diagram's systems, those of the diagrams in it in their place."""
-    systems = []
-    for system in diagram.GetSystems():
-        if isinstance(system, Diagram):
-            systems += _leaf_systems(system)
-        else:
-            systems.append(system)
-    return systems
