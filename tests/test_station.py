@@ -4,6 +4,7 @@ limits, the state machine's phases and the grasp monitor's verdicts.
 Episodes are simulated once per class (a few seconds each) and shared.
 """
 
+import functools
 import os
 import re
 import tempfile
@@ -58,11 +59,19 @@ def _setup(cls):
     cls.obj = load_catalogue()[OBJECT]
 
 
+@functools.cache
+def _watched():
+    """The default scenario's watching throw of OBJECT, simulated once for
+    the module."""
+    scenario = load_scenario()
+    return watch(scenario, load_catalogue()[OBJECT], ArmIk(scenario.directives))
+
+
 class TestWatchedFlight(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         _setup(cls)
-        cls.first = watch(cls.scenario, cls.obj, cls.ik)
+        cls.first = _watched()
         cls.second = watch(cls.scenario, cls.obj, cls.ik)
 
     def test_watching_throw_lands(self):
@@ -119,8 +128,7 @@ class TestCatch(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         _setup(cls)
-        watched = watch(cls.scenario, cls.obj, cls.ik)
-        cls.plan = plan_catch(cls.scenario, cls.obj, cls.ik, watched)
+        cls.plan = plan_catch(cls.scenario, cls.obj, cls.ik, _watched())
         c = cls.scenario.catch
         cls.tmp = tempfile.TemporaryDirectory()
         cls.html = Path(cls.tmp.name) / "episode.html"
