@@ -359,13 +359,13 @@ def _train_files(out: Path) -> tuple[Path, Path]:
 
 
 def _cmd_train(args) -> int:
-    from regrasp_drake.learning.dataset import load_training_data
-    from regrasp_drake.paths import MODELS_DIR
     if args.splits < 1:
         raise InputError(f"--splits: got {args.splits}, expected an integer "
                          ">= 1")
     if args.seed < 0:
         raise InputError(f"--seed: got {args.seed}, expected an integer >= 0")
+    from regrasp_drake.learning.dataset import load_training_data  # torch
+    from regrasp_drake.paths import MODELS_DIR
     data = args.data or MODELS_DIR / "dataset"
     load_training_data(data)  # refuse a bad data set before any training
     import torch
@@ -393,6 +393,7 @@ def _cmd_train(args) -> int:
 
 
 def _cmd_table1(args) -> int:
+    _check_first_throw_args(args)  # before torch loads
     import torch
 
     from regrasp_drake.learning.table1 import (
@@ -405,7 +406,6 @@ def _cmd_table1(args) -> int:
     from regrasp_drake.station.scenario import load_scenario
     from regrasp_drake.world.objects import resolve_object
     torch.set_num_threads(1)
-    _check_first_throw_args(args)
     scenario = load_scenario(args.scenario)
     model = _load_network(args, scenario)
     flight_predictor = _flight_predictor(args)
