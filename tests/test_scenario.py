@@ -71,6 +71,21 @@ class TestScenario(unittest.TestCase):
                 self.assertIn(field, str(e.exception))
                 self.assertEqual(len(str(e.exception).splitlines()), 1)
 
+    def test_directives_without_the_hand_on_the_arm_refused(self):
+        from regrasp_drake.world.robot import directives_yaml
+        shipped = directives_yaml(None)
+        for text, expected in (
+                (shipped.replace("parent: puma560::link6", "parent: world"),
+                 "the hand welded"),
+                (shipped.replace("name: hand", "name: other_hand"),
+                 "add_model entries named")):
+            with self.subTest(expected=expected):
+                with self.assertRaises(InputError) as e:
+                    self._load(text)
+                self.assertIn("directives: got", str(e.exception))
+                self.assertIn(expected, str(e.exception))
+                self.assertEqual(len(str(e.exception).splitlines()), 1)
+
     def test_wrong_type_refused_with_field(self):
         cases = {
             "plant_config:\n  time_step: fast\n":
