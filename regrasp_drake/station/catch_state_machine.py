@@ -16,7 +16,10 @@ Phases, in order:
   LOWER   the fingers close at their maximum speed while the hand is lowered
           by |h_down|; lowering stops as soon as a palm sensor (IR 1-3) reads
           below the stop level (Fig. 9 line 13);
-  RETURN  the hand goes back up to the grasp position;
+  RETURN  the hand goes back up to the grasp position (with
+          catch.return_from_motion, from the lowering's moving state: the
+          hand goes on down as the object lands and turns back smoothly, a
+          cushion, rather than stopping dead under it);
   HOLD    the hand holds the object there.
 
 The arm is commanded in joint space: every phase is a segment from q_a to q_b
@@ -53,6 +56,7 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.palm_toss import TossDesign, toss_trajectory
+from regrasp_drake.world.robot import HAND_JOINTS
 
 
 class Phase(enum.IntEnum):
@@ -68,7 +72,8 @@ class Phase(enum.IntEnum):
 
 # Plain numbers of the phases the per-step references test (faster than
 # the enum's attribute lookup).
-_THROW, _MOVE, _LOWER = int(Phase.THROW), int(Phase.MOVE), int(Phase.LOWER)
+_THROW, _MOVE, _LOWER, _RETURN = (int(Phase.THROW), int(Phase.MOVE),
+                                  int(Phase.LOWER), int(Phase.RETURN))
 
 # Layout of the discrete state vector.
 _PHASE, _T0, _T, _T_CLOSE, _T_OPEN, _H_DOWN, _TICK = range(7)
@@ -150,6 +155,18 @@ def quintic_from(tau, T, q0, v0, a0, q1):
     return q, dq / T, ddq / (T * T)
 
 
+def preshape_closures(catch) -> np.ndarray:
+    """The fingers' pre-shape, per hand joint (HAND_JOINTS order: each
+    finger's knuckle j1 then distal j2), as a fraction of the closed
+    posture: catch.preshape_closure for the knuckles, and for the distal
+    joints catch.preshape_distal_closure (None: the knuckles')."""
+    distal = catch.preshape_distal_closure
+    closures = np.full(len(HAND_JOINTS), float(catch.preshape_closure))
+    if distal is not None:
+        closures[1::2] = distal
+    return closures
+
+
 def _quintic(tau):
     """Time law s(τ), s'(τ), s''(τ) with zero end velocity and acceleration."""
     tau = min(max(tau, 0.0), 1.0)
@@ -184,9 +201,10 @@ class CatchStateMachine(LeafSystem):
         self._toss = scenario.throw.kind == "palm_toss"
         self._hold = self._open + scenario.throw.hold_closure * (
             self._closed - self._open)
-        self._preshape = self._open + scenario.catch.preshape_closure * (
+        self._preshape = self._open + preshape_closures(scenario.catch) * (
             self._closed - self._open)
         self._speed = finger_speed_rad_per_s
+        self._cushion = scenario.catch.return_from_motion
         self._zeros6 = np.zeros(6)
         self._zeros_hand = np.zeros(len(self._open))
         self._park_q = None if park_q is None else np.asarray(park_q, float)
@@ -271,7 +289,8 @@ class CatchStateMachine(LeafSystem):
         tau = (t - x[_T0]) / T
         if tau >= 1.0:  # the segment is done: rest at its end
             return x[_QB], self._zeros6, self._zeros6
-        if self._toss and x[_PHASE] == _MOVE:  # from the toss's moving state
+        if ((self._toss and x[_PHASE] == _MOVE)  # from the toss's motion
+                or (self._cushion and x[_PHASE] == _RETURN)):  # the lowering's
             return quintic_from(tau, T, x[_QA], x[_V0], x[_A0], x[_QB])
         s, ds, dds = _quintic(tau)
         dq = x[_QB] - x[_QA]
@@ -400,9 +419,11 @@ class CatchStateMachine(LeafSystem):
         elif phase == Phase.LOWER:
             stop = self._palm_level(context) < self._catch.palm_stop_level
             if segment_done or stop:
-                q_now, _, _ = self._arm_reference(x, t)
+                q_now, v_now, a_now = self._arm_reference(x, t)
                 self._start_segment(x, t, q_now, x[_QGRASP],
                                     self._catch.return_s, Phase.RETURN)
+                if self._cushion:  # the hand turns back without stopping
+                    x[_V0], x[_A0] = v_now, a_now
         elif phase == Phase.RETURN and segment_done:
             x[_PHASE] = Phase.HOLD
         return EventStatus.Succeeded()

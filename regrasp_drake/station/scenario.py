@@ -226,6 +226,10 @@ class CatchConfig:
     # fraction of the closed posture, a cage that funnels the falling object
     # toward the palm, [-].
     preshape_closure: float = 0.3
+    # The distal joints' pre-shape, as the same fraction, [-]; None: that of
+    # the knuckles (preshape_closure). Knuckles flexed more than the distal
+    # joints stand the fingers up as walls with their tips over the palm.
+    preshape_distal_closure: typing.Optional[float] = None
     # Speed at which the hand is lowered by |h_down|, [m/s].
     lower_speed_m_per_s: float = 1.0
     # Lowering stops when a palm infrared sensor reads below this, [level]
@@ -233,6 +237,12 @@ class CatchConfig:
     palm_stop_level: int = 600
     # Duration of the return from the lowered to the grasp position, [s].
     return_s: float = 0.3
+    # false (the paper's Fig. 9): the return starts from rest where the
+    # lowering stopped, so the hand stops dead as the object lands. true:
+    # it takes over from the lowering's moving state (position, velocity,
+    # acceleration), so the hand goes on down as the object lands and turns
+    # back smoothly within return_s, a cushion.
+    return_from_motion: bool = False
     # Where (h_catch, h_down) come from: "fixed" (the two values below) or
     # "mlp" (the network in `weights`).
     parameter_source: str = "fixed"
@@ -467,6 +477,9 @@ def validate(s: Scenario) -> Scenario:
               0.05, 1.0)
     _in_range("catch.grasp_tolerance_m", k.grasp_tolerance_m, 1e-5, 0.05, " m")
     _in_range("catch.preshape_closure", k.preshape_closure, 0.0, 0.8)
+    if k.preshape_distal_closure is not None:
+        _in_range("catch.preshape_distal_closure", k.preshape_distal_closure,
+                  0.0, 0.8)
     _in_range("catch.lower_speed_m_per_s", k.lower_speed_m_per_s, 0.01, 5.0,
               " m/s")
     _in_range("catch.palm_stop_level", k.palm_stop_level, 0, n.levels)

@@ -99,7 +99,9 @@ def _offset_throw(task):
                          catch_parameters=parameters)
     return {"object": name, "dx_mm": dx_mm, "dy_mm": dy_mm,
             "h_catch": parameters[0], "h_down": parameters[1],
-            "outcome": result.outcome, "message": result.message}
+            "outcome": result.outcome, "message": result.message,
+            "drop_reason": result.drop_reason, "touching": result.touching,
+            "held_by_contact": result.held_by_contact}
 
 
 def _key(row) -> tuple:

@@ -1,0 +1,95 @@
+"""The catch state machine's catch-tolerance fields: the cushioned return
+(catch.return_from_motion) and the distal joints' pre-shape
+(catch.preshape_distal_closure)."""
+
+import unittest
+
+import numpy as np
+
+from regrasp_drake.errors import InputError
+from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station import catch_state_machine as csm
+from regrasp_drake.station.scenario import Scenario, load_scenario, validate
+from regrasp_drake.world import robot
+
+
+class CatchFieldsTest(unittest.TestCase):
+    def test_refused_in_one_line_naming_the_field(self):
+        for text, expected in (
+                ("{catch: {preshape_distal_closure: 0.9}}",
+                 "catch.preshape_distal_closure: got 0.9, expected a number "
+                 "in [0.0, 0.8]"),
+                ("{catch: {preshape_distal_closure: x}}",
+                 "catch.preshape_distal_closure: got 'x', expected a number"),
+                ("{catch: {return_from_motion: 2}}",
+                 "catch.return_from_motion: got 2, expected true or false")):
+            with self.subTest(text=text):
+                with self.assertRaises(InputError) as e:
+                    load_scenario(text=text)
+                self.assertIn(expected, str(e.exception))
+                self.assertEqual(len(str(e.exception).splitlines()), 1)
+
+    def test_defaults_keep_the_paper_catch(self):
+        s = validate(Scenario())
+        self.assertFalse(s.catch.return_from_motion)
+        self.assertIsNone(s.catch.preshape_distal_closure)
+        np.testing.assert_array_equal(csm.preshape_closures(s.catch),
+                                      np.full(10, s.catch.preshape_closure))
+
+    def test_distal_joints_preshape_on_their_own(self):
+        s = load_scenario(text="{catch: {preshape_closure: 0.5, "
+                               "preshape_distal_closure: 0.2}}")
+        closures = csm.preshape_closures(s.catch)
+        for i, joint in enumerate(robot.HAND_JOINTS):
+            self.assertEqual(closures[i], 0.2 if joint.endswith("_j2") else 0.5,
+                             joint)
+
+
+class CushionedReturnTest(unittest.TestCase):
+    """Where the lowering stops (the object seen on the palm), the return
+    starts from the arm's moving reference with return_from_motion, from
+    rest without it."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.ik = ArmIk()
+
+    def _return_reference(self, cushion: bool, tau: float):
+        s = load_scenario(
+            text="{throw: {kind: palm_toss}, catch: {return_from_motion: "
+                 f"{'true' if cushion else 'false'}}}}}")
+        machine = csm.CatchStateMachine(
+            s, self.ik, robot.HAND_OPEN, robot.HAND_CLOSED,
+            robot.FINGER_MAX_SPEED)
+        q_grasp = np.array(s.throw.toss.start_q_rad)
+        q_low = q_grasp + [0.0, -0.05, 0.08, 0.0, -0.03, 0.0]
+        x = np.zeros(csm._SIZE)
+        x[csm._QGRASP] = q_grasp
+        csm.CatchStateMachine._start_segment(x, 1.0, q_grasp, q_low, 0.1,
+                                             csm.Phase.LOWER)
+        t_stop = 1.04  # the palm sensor sees the object mid-lowering
+        q, v, a = machine._arm_reference(x, t_stop)
+        csm.CatchStateMachine._start_segment(x, t_stop, q, q_grasp,
+                                             s.catch.return_s, csm.Phase.RETURN)
+        if cushion:
+            x[csm._V0], x[csm._A0] = v, a
+        return v, machine._arm_reference(
+            x, t_stop + tau * s.catch.return_s)
+
+    def test_the_hand_turns_back_without_stopping(self):
+        v_stop, (_, v0, _) = self._return_reference(True, 0.0)
+        self.assertGreater(np.linalg.norm(v_stop), 0.5)
+        np.testing.assert_allclose(v0, v_stop, atol=1e-12)
+        _, (_, v0_paper, _) = self._return_reference(False, 0.0)
+        np.testing.assert_array_equal(v0_paper, np.zeros(6))
+
+    def test_the_cushioned_return_ends_at_rest_at_the_grasp_pose(self):
+        _, (q1, v1, a1) = self._return_reference(True, 1.0)
+        s = Scenario()
+        np.testing.assert_allclose(q1, s.throw.toss.start_q_rad, atol=1e-12)
+        np.testing.assert_array_equal(v1, np.zeros(6))
+        np.testing.assert_array_equal(a1, np.zeros(6))
+
+
+if __name__ == "__main__":
+    unittest.main()
