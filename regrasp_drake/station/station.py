@@ -64,6 +64,7 @@ from pydrake.systems.primitives import (
     VectorLogSink,
 )
 
+from regrasp_drake.errors import InputError
 from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
@@ -73,7 +74,6 @@ from regrasp_drake.station.catch_state_machine import (
 )
 from regrasp_drake.station.grasp_monitor import GraspMonitor
 from regrasp_drake.station.mlp_system import MlpSystem, load_weights
-from regrasp_drake.errors import InputError
 from regrasp_drake.station.scenario import Scenario, scenario_digest
 from regrasp_drake.station.sensors import InfraredSensors, TactileBumper
 from regrasp_drake.world import robot
