@@ -34,7 +34,7 @@ from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.catch_state_machine import Phase
 from regrasp_drake.station.episode import advance_to_outcome, run_episode
 from regrasp_drake.station.scenario import load_scenario
-from regrasp_drake.station.station import build_station, initialize
+from regrasp_drake.station.station import build_episode_diagram, initialize
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world.objects import resolve_object
 
@@ -98,9 +98,10 @@ def record_plant_inputs(scenario, obj, ik, X_WG, params):
     port evaluated between steps gives the value the plant's next step
     reads."""
     import numpy as np
-    station = build_station(scenario, obj, ik=ik, X_WG=X_WG,
-                            catch_parameters=params)
-    simulator = initialize(station, scenario)
+    episode = build_episode_diagram(scenario, obj, ik=ik, X_WG=X_WG,
+                                    catch_parameters=params)
+    simulator = initialize(episode, scenario)
+    station = episode.station
     plant = station.plant
     context = plant.GetMyContextFromRoot(simulator.get_context())
     dt = scenario.time_step_s
@@ -172,14 +173,14 @@ def episode_from_wall_s(scenario, obj, ik, X_WG, params, t_start,
     """Wall time of the whole episode's simulation from t_start to its end
     (what a forked cell of a success map runs, when t_start is the fork).
     `timer`, a CallbackTimer already entered: it counts from t_start."""
-    station = build_station(scenario, obj, ik=ik, X_WG=X_WG,
-                            catch_parameters=params)
-    simulator = initialize(station, scenario)
+    episode = build_episode_diagram(scenario, obj, ik=ik, X_WG=X_WG,
+                                    catch_parameters=params)
+    simulator = initialize(episode, scenario)
     simulator.AdvanceTo(t_start)
     if timer is not None:
         timer.reset()
     t0 = time.perf_counter()
-    advance_to_outcome(simulator, station, scenario)
+    advance_to_outcome(simulator, episode, scenario)
     return time.perf_counter() - t0
 
 
@@ -205,7 +206,7 @@ def main(argv=None) -> int:
         return 2
     torch.set_num_threads(1)
     scenario = load_scenario()
-    ik = ArmIk()
+    ik = ArmIk(scenario.directives)
     plan = plan_catch(scenario, obj, ik, watch(scenario, obj, ik))
     params = (scenario.catch.h_catch_m, scenario.catch.h_down_m)
     results = []

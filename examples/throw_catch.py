@@ -52,7 +52,7 @@ def main() -> int:
             name=args.object or (None if args.object_file else "table1-row2"),
             file=args.object_file)
         model, _ = load_weights(MODELS_DIR / scenario.catch.weights)
-        ik = ArmIk()
+        ik = ArmIk(scenario.directives)
         plan = plan_catch(scenario, obj, ik, watch(scenario, obj, ik))
         raw, _ = predict(model, network_features(obj, plan.catch_point))
         h_catch, h_down = cell_parameters(nearest_cell(*raw))

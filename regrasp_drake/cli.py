@@ -196,7 +196,7 @@ def _cmd_throw(args) -> int:
     scenario, obj, _, _ = _scenario_and_object(args)  # before heavy imports
     from regrasp_drake.learning.learning_phase import observe
     from regrasp_drake.planning.ik import ArmIk
-    observation = observe(scenario, obj, ArmIk())
+    observation = observe(scenario, obj, ArmIk(scenario.directives))
     if args.plot:
         from regrasp_drake.learning.plots import plot_flight
         plot_flight(observation, scenario, args.plot)
@@ -359,13 +359,13 @@ def _train_files(out: Path) -> tuple[Path, Path]:
 
 
 def _cmd_train(args) -> int:
-    from regrasp_drake.learning.dataset import load_training_data
-    from regrasp_drake.paths import MODELS_DIR
     if args.splits < 1:
         raise InputError(f"--splits: got {args.splits}, expected an integer "
                          ">= 1")
     if args.seed < 0:
         raise InputError(f"--seed: got {args.seed}, expected an integer >= 0")
+    from regrasp_drake.learning.dataset import load_training_data  # torch
+    from regrasp_drake.paths import MODELS_DIR
     data = args.data or MODELS_DIR / "dataset"
     load_training_data(data)  # refuse a bad data set before any training
     import torch
@@ -393,6 +393,7 @@ def _cmd_train(args) -> int:
 
 
 def _cmd_table1(args) -> int:
+    _check_first_throw_args(args)  # before torch loads
     import torch
 
     from regrasp_drake.learning.table1 import (
@@ -405,7 +406,6 @@ def _cmd_table1(args) -> int:
     from regrasp_drake.station.scenario import load_scenario
     from regrasp_drake.world.objects import resolve_object
     torch.set_num_threads(1)
-    _check_first_throw_args(args)
     scenario = load_scenario(args.scenario)
     model = _load_network(args, scenario)
     flight_predictor = _flight_predictor(args)
@@ -414,7 +414,8 @@ def _cmd_table1(args) -> int:
             resolve_object(name=name)
         except InputError as e:
             raise InputError(f"--objects: {e}") from None
-    rows = run_table1(scenario, model, ik=ArmIk(), library_path=args.library,
+    rows = run_table1(scenario, model, ik=ArmIk(scenario.directives),
+                      library_path=args.library,
                       maps_dir=args.maps_dir,
                       flight_predictor=flight_predictor,
                       objects=args.objects, max_throws=args.max_throws,
@@ -436,7 +437,7 @@ def _cmd_train_flight(args) -> int:
     scenario = load_scenario(args.scenario)
     data = args.data or MODELS_DIR / "dataset"
     held_out = [o for o in load_catalogue().values() if o.set != "train"]
-    report = train_from_dataset(data, scenario, args.out, ik=ArmIk(),
+    report = train_from_dataset(data, scenario, args.out, ik=ArmIk(scenario.directives),
                                 eval_objects=held_out, progress=sys.stderr)
     print(json.dumps(report, indent=1))
     return 0

@@ -194,7 +194,7 @@ def catch_once(scenario: Scenario, obj: ObjectSpec, *, h_catch: float,
     """`regrasp-drake catch`: watch, plan, and one catch attempt with
     (h_catch, h_down), [m]; `meshcat`: where the catching throw is drawn."""
     torch.set_num_threads(1)
-    ik = ArmIk()
+    ik = ArmIk(scenario.directives)
     watched = watch(scenario, obj, ik)
     plan = plan_catch(scenario, obj, ik, watched)
     result = run_episode(scenario, obj, ik=ik, X_WG=plan.X_WG,

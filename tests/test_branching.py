@@ -16,19 +16,20 @@ class RunCellsTest(Row2Fixture, unittest.TestCase):
     def setUpClass(cls):
         super().setUpClass()
         cls.plan = plan_object(cls.scenario, cls.obj, cls.ik)
-
-    def test_forked_cells_equal_whole_episodes(self):
         # Rows that trigger at different times, and a catch and drops.
         # (0.40 and 0.36 trigger at the same sample: one shared simulation.)
-        parameters = [(0.40, -0.05), (0.20, -0.09), (0.08, -0.13),
-                      (0.20, 0.0), (0.36, -0.05)]
-        finished = []
-        rows = run_cells(self.scenario, self.obj, ik=self.ik,
-                         X_WG=self.plan.X_WG, parameters=parameters,
-                         workers=2, on_result=lambda i, row: finished.append(i))
-        self.assertEqual(sorted(finished), [0, 1, 2, 3, 4])
+        cls.parameters = [(0.40, -0.05), (0.20, -0.09), (0.08, -0.13),
+                          (0.20, 0.0), (0.36, -0.05)]
+        cls.finished = []
+        cls.rows = run_cells(cls.scenario, cls.obj, ik=cls.ik,
+                             X_WG=cls.plan.X_WG, parameters=cls.parameters,
+                             workers=2,
+                             on_result=lambda i, row: cls.finished.append(i))
+
+    def test_forked_cells_equal_whole_episodes(self):
+        self.assertEqual(sorted(self.finished), [0, 1, 2, 3, 4])
         outcomes = set()
-        for (h_catch, h_down), row in zip(parameters, rows):
+        for (h_catch, h_down), row in zip(self.parameters, self.rows):
             whole = run_episode(self.scenario, self.obj, ik=self.ik,
                                 X_WG=self.plan.X_WG,
                                 catch_parameters=(h_catch, h_down))
@@ -58,10 +59,11 @@ class RunCellsTest(Row2Fixture, unittest.TestCase):
         parameters = [(0.40, -0.05), (0.08, -0.13), (0.20, 0.0)]
         t_end = (self.scenario.throw.settle_s
                  + self.scenario.throw.knot_times_s[-1])
-        kwargs = dict(ik=self.ik, X_WG=self.plan.X_WG, parameters=parameters)
-        plain = run_cells(self.scenario, self.obj, **kwargs)
-        handed = run_cells(self.scenario, self.obj, **kwargs,
-                           handoff=(t_end, self.scenario))
+        # Without the handoff: the rows of setUpClass's run.
+        plain = [self.rows[self.parameters.index(p)] for p in parameters]
+        handed = run_cells(self.scenario, self.obj, ik=self.ik,
+                           X_WG=self.plan.X_WG, parameters=parameters,
+                           handoff=(t_end, self.scenario), workers=2)
         for a, b in zip(plain, handed):
             self.assertEqual((a["outcome"], a["sim_time_s"], a["catch_time_s"]),
                              (b["outcome"], b["sim_time_s"], b["catch_time_s"]))
@@ -78,10 +80,10 @@ class ReadEndingTest(unittest.TestCase):
     def test_contacts_that_cannot_be_computed_read_none(self):
         # After a failed contact solve, evaluating the contact results
         # fails again: the ending has no contacts instead of raising.
-        station = mock.Mock()
-        station.plant.get_contact_results_output_port.return_value \
+        episode = mock.Mock()
+        episode.station.plant.get_contact_results_output_port.return_value \
             .Eval.side_effect = RuntimeError("contact solver failed")
-        self.assertEqual(read_ending(station, mock.Mock(), "failed"),
+        self.assertEqual(read_ending(episode, mock.Mock(), "failed"),
                          {"drop_reason": None, "touching": None,
                           "held_by_contact": None, "slip_m_per_s": None,
                           "spin_rad_per_s": None})

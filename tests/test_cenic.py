@@ -14,7 +14,7 @@ from regrasp_drake.errors import InputError
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.palm_toss import TossDesign
 from regrasp_drake.station.scenario import Scenario, load_scenario
-from regrasp_drake.station.station import build_station, initialize
+from regrasp_drake.station.station import build_episode_diagram, initialize
 from regrasp_drake.world import robot
 from regrasp_drake.world.objects import load_catalogue
 from tests.refusals import RefusalAssertions, load_script
@@ -66,9 +66,11 @@ class CenicTrackingTest(unittest.TestCase):
     def setUpClass(cls):
         cls.scenario = load_scenario(STUDY, text=CENIC)
         obj = load_catalogue()["table1-row2"]
-        cls.station = build_station(cls.scenario, obj, ik=ArmIk(), X_WG=None)
-        simulator = initialize(cls.station, cls.scenario)
-        plant, machine = cls.station.plant, cls.station.state_machine
+        episode = build_episode_diagram(cls.scenario, obj, ik=ArmIk(),
+                                        X_WG=None)
+        cls.station = episode.station
+        simulator = initialize(episode, cls.scenario)
+        plant, machine = cls.station.plant, episode.controller.state_machine
         hand_u = plant.get_net_actuation_output_port()
         hand_columns = [plant.get_joint_actuator(i).input_start()
                         for i in plant.GetJointActuatorIndices(

@@ -21,7 +21,7 @@ from regrasp_drake.station.scenario import (
     validate,
     with_time_step,
 )
-from regrasp_drake.station.station import build_station, initialize
+from regrasp_drake.station.station import build_episode_diagram, initialize
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world.objects import load_catalogue
 
@@ -175,9 +175,10 @@ class RestPoseTest(unittest.TestCase):
         obj = load_catalogue()["can-d250-5"]
         ik = ArmIk()
         scenario = with_time_step(load_scenario(STUDY), 0.001)
-        station = build_station(scenario, obj, ik=ik, X_WG=None)
-        finer = build_station(with_time_step(scenario, 0.00025), obj, ik=ik,
-                              X_WG=None)
+        episode = build_episode_diagram(scenario, obj, ik=ik, X_WG=None)
+        station = episode.station
+        finer = build_episode_diagram(with_time_step(scenario, 0.00025), obj,
+                                      ik=ik, X_WG=None).station
         np.testing.assert_array_equal(
             station.X_WO_initial.GetAsMatrix34(),
             finer.X_WO_initial.GetAsMatrix34())
@@ -185,7 +186,7 @@ class RestPoseTest(unittest.TestCase):
         # mass low.
         tilt = station.X_WO_initial.rotation().ToRollPitchYaw().pitch_angle()
         self.assertGreater(abs(tilt), 0.3)
-        simulator = initialize(station, scenario)
+        simulator = initialize(episode, scenario)
         plant = station.plant
         palm = plant.GetBodyByName("palm", station.hand)
         largest = 0.0

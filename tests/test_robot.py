@@ -4,9 +4,11 @@ import unittest
 import xml.etree.ElementTree as ET
 
 import numpy as np
+from pydrake.common.yaml import yaml_load_typed
 from pydrake.geometry import Cylinder
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.math import SpatialForce
+from pydrake.multibody.parsing import ModelDirectives
 from pydrake.multibody.plant import (
     AddMultibodyPlantSceneGraph,
     ContactModel,
@@ -19,6 +21,7 @@ from pydrake.multibody.tree import SpatialInertia
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
+from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.world import robot
 
 # Standard DH table of puma560.md: (d, a, alpha), m and rad.
@@ -314,6 +317,87 @@ class TestRobotModel(unittest.TestCase):
             -control.CalcGravityGeneralizedForces(control_context)[1], 37.48 + 0.5
         )
 
+
+
+def _moved_robot_directives():
+    """The shipped directives with the arm's base moved and turned and the
+    hand mounted 3 cm further out, turned about the flange axis."""
+    text = robot.directives_yaml(None)
+    text = text.replace(
+        "child: puma560::link0",
+        "child: puma560::link0\n    X_PC:\n      translation: [0.2, -0.1, 0.05]"
+        "\n      rotation: !Rpy\n        deg: [0.0, 0.0, 30.0]", 1)
+    text = text.replace("[0.0, 0.0, 0.116]", "[0.0, 0.0, 0.146]", 1)
+    return list(yaml_load_typed(schema=ModelDirectives, data=text).directives)
+
+
+class TestControlPlantFromDirectives(unittest.TestCase):
+    """The arm-only plant (inverse dynamics, inverse kinematics) is built
+    from the scenario's model directives: a robot placed otherwise is
+    controlled and planned as the plant it builds."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.directives = _moved_robot_directives()
+        cls.plant = MultibodyPlant(0.0)
+        cls.robot = robot.add_puma_and_hand(cls.plant, cls.directives)
+        cls.plant.Finalize()
+        cls.context = cls.plant.CreateDefaultContext()
+        cls.control = robot.make_arm_control_plant(cls.directives)
+        cls.control_context = cls.control.CreateDefaultContext()
+
+    def test_the_directives_are_not_the_shipped_ones(self):
+        self.assertNotEqual(robot.directives_yaml(self.directives),
+                            robot.directives_yaml(None))
+
+    def test_dynamics_match_the_full_plant(self):
+        rng = np.random.default_rng(3)
+        for q in [robot.QZ, robot.QN, rng.uniform(-2, 2, 6)]:
+            self.plant.SetPositions(self.context, self.robot.arm, q)
+            self.plant.SetPositions(self.context, self.robot.hand,
+                                    robot.HAND_OPEN)
+            self.control.SetPositions(self.control_context, q)
+            with self.subTest(q=q.round(3).tolist()):
+                np.testing.assert_allclose(
+                    self.control.CalcGravityGeneralizedForces(
+                        self.control_context),
+                    self.plant.CalcGravityGeneralizedForces(self.context)[:6],
+                    atol=1e-9)
+                np.testing.assert_allclose(
+                    self.control.CalcMassMatrix(self.control_context),
+                    self.plant.CalcMassMatrix(self.context)[:6, :6],
+                    atol=1e-9)
+        # The moved mount changes the dynamics: the shipped plant differs.
+        shipped = robot.make_arm_control_plant()
+        shipped_context = shipped.CreateDefaultContext()
+        self.assertGreater(np.abs(
+            shipped.CalcMassMatrix(shipped_context)
+            - self.control.CalcMassMatrix(self.control_context)).max(), 1e-3)
+
+    def test_inverse_kinematics_reaches_the_full_plant_s_palm_pose(self):
+        ik = ArmIk(self.directives)
+        q = np.array([0.3, 0.6, -0.4, 0.2, 0.5, -0.1])
+        self.plant.SetPositions(self.context, self.robot.arm, q)
+        X_WP = self.plant.GetFrameByName(
+            "palm_surface", self.robot.hand).CalcPoseInWorld(self.context)
+        self.assertTrue(X_WP.IsNearlyEqualTo(ik.palm_pose(q), 1e-12))
+        result = ik.solve(X_WP, q + 0.05)
+        self.assertTrue(result.success, result.reason())
+        self.plant.SetPositions(self.context, self.robot.arm, result.q)
+        reached = self.plant.GetFrameByName(
+            "palm_surface", self.robot.hand).CalcPoseInWorld(self.context)
+        self.assertLess(np.linalg.norm(
+            reached.translation() - X_WP.translation()), 1e-3)
+        # The shipped robot's inverse kinematics puts the palm elsewhere.
+        self.assertGreater(np.linalg.norm(
+            ArmIk().palm_pose(q).translation() - X_WP.translation()), 0.1)
+
+    def test_a_hand_not_on_the_arm_is_refused(self):
+        text = robot.directives_yaml(None).replace(
+            "parent: puma560::link6", "parent: world")
+        directives = yaml_load_typed(schema=ModelDirectives, data=text)
+        with self.assertRaisesRegex(ValueError, "the hand is welded to"):
+            robot.make_arm_control_plant(list(directives.directives))
 
 class TestHandEnvelope(unittest.TestCase):
     """The hand, welded palm-up, wraps a cylinder lying across its palm and holds it

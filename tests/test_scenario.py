@@ -19,7 +19,7 @@ from regrasp_drake.station.scenario import (
     scenario_digest,
     scenario_yaml,
 )
-from regrasp_drake.station.station import build_station, initialize
+from regrasp_drake.station.station import build_episode_diagram, initialize
 from regrasp_drake.world.objects import load_catalogue
 
 TEST_SCENARIOS = Path(__file__).parent / "scenarios.yaml"
@@ -69,6 +69,21 @@ class TestScenario(unittest.TestCase):
                 with self.assertRaises(InputError) as e:
                     self._load(text)
                 self.assertIn(field, str(e.exception))
+                self.assertEqual(len(str(e.exception).splitlines()), 1)
+
+    def test_directives_without_the_hand_on_the_arm_refused(self):
+        from regrasp_drake.world.robot import directives_yaml
+        shipped = directives_yaml(None)
+        for text, expected in (
+                (shipped.replace("parent: puma560::link6", "parent: world"),
+                 "the hand welded"),
+                (shipped.replace("name: hand", "name: other_hand"),
+                 "add_model entries named")):
+            with self.subTest(expected=expected):
+                with self.assertRaises(InputError) as e:
+                    self._load(text)
+                self.assertIn("directives: got", str(e.exception))
+                self.assertIn(expected, str(e.exception))
                 self.assertEqual(len(str(e.exception).splitlines()), 1)
 
     def test_wrong_type_refused_with_field(self):
@@ -201,7 +216,7 @@ class OneOfEverythingTest(unittest.TestCase):
     def setUpClass(cls):
         cls.scenario = load_scenario(TEST_SCENARIOS, name="OneOfEverything")
         cls.obj = load_catalogue()["table1-row2"]
-        cls.ik = ArmIk()
+        cls.ik = ArmIk(cls.scenario.directives)
 
     def test_every_field_away_from_its_default(self):
         ours = _leaves(parse_yaml(scenario_yaml(self.scenario), tags=True))
@@ -215,13 +230,15 @@ class OneOfEverythingTest(unittest.TestCase):
                           "simulator_config.start_time"])
 
     def test_station_builds_and_steps(self):
-        station = build_station(self.scenario, self.obj, ik=self.ik, X_WG=None)
+        episode = build_episode_diagram(self.scenario, self.obj, ik=self.ik,
+                                        X_WG=None)
+        station = episode.station
         plant = station.plant
         self.assertEqual(plant.time_step(), 0.0005)
         self.assertEqual(plant.get_discrete_contact_approximation(),
                          DiscreteContactApproximation.kSap)
         self.assertTrue(plant.HasFrameNamed("camera_mount"))
-        simulator = initialize(station, self.scenario)
+        simulator = initialize(episode, self.scenario)
         simulator.AdvanceTo(0.02)
         # The object settles in the palm: it has moved by under a centimetre.
         X_WO = plant.EvalBodyPoseInWorld(
@@ -231,10 +248,11 @@ class OneOfEverythingTest(unittest.TestCase):
             X_WO.translation() - station.X_WO_initial.translation()), 0.01)
 
     def test_station_builds_with_the_network(self):
-        station = build_station(self.scenario, self.obj, ik=self.ik,
-                                X_WG=RigidTransform([0.8, 0.0, 0.7]),
-                                mlp_features=[-3.8, 0.0, 0.0, 0.05, 0.0])
-        self.assertTrue(station.diagram.HasSubsystemNamed("mlp"))
+        episode = build_episode_diagram(
+            self.scenario, self.obj, ik=self.ik,
+            X_WG=RigidTransform([0.8, 0.0, 0.7]),
+            mlp_features=[-3.8, 0.0, 0.0, 0.05, 0.0])
+        self.assertTrue(episode.diagram.HasSubsystemNamed("mlp"))
 
 
 if __name__ == "__main__":

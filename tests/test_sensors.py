@@ -340,23 +340,25 @@ class RayEntryTest(unittest.TestCase):
         bounding sphere about its frame origin read nothing, uncomputed)
         gives the readings of casting every ray, for an L-shaped object in
         random poses around the palm."""
-        from regrasp_drake.planning.ik import ArmIk
+        from pydrake.systems.framework import DiagramBuilder
+
         from regrasp_drake.station.scenario import load_scenario
-        from regrasp_drake.station.station import build_station
+        from regrasp_drake.station.station import add_station
         from regrasp_drake.world.objects import resolve_object
         scenario = load_scenario()
         obj = resolve_object(name="table1-row4")
-        station = build_station(scenario, obj, ik=ArmIk(), X_WG=None)
+        builder = DiagramBuilder()
+        station = add_station(builder, scenario, obj)
+        diagram = builder.Build()
         plant = station.plant
-        scene_graph = station.diagram.GetSubsystemByName("scene_graph")
-        bounded = station.diagram.GetSubsystemByName("infrared")
+        scene_graph, bounded = station.scene_graph, station.infrared
         unbounded = InfraredSensors(
             plant, [plant.GetFrameByName(f"ir{i}", station.hand)
                     for i in range(1, 14)],
             list(plant.GetCollisionGeometriesForBody(station.object_body)),
             bounded.ranges_m(), period_s=scenario.sensors.period_s,
             levels=bounded.levels(), inspector=scene_graph.model_inspector())
-        context = station.diagram.CreateDefaultContext()
+        context = diagram.CreateDefaultContext()
         plant_context = plant.GetMyMutableContextFromRoot(context)
         X_WP = plant.GetFrameByName("palm_surface", station.hand).CalcPoseInWorld(
             plant_context)

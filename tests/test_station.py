@@ -4,6 +4,7 @@ limits, the state machine's phases and the grasp monitor's verdicts.
 Episodes are simulated once per class (a few seconds each) and shared.
 """
 
+import functools
 import os
 import re
 import tempfile
@@ -14,8 +15,11 @@ import matplotlib.image
 import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
 
 from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station import throw
 from regrasp_drake.station.catch_state_machine import Phase
 from regrasp_drake.station.episode import run_episode
 from regrasp_drake.station.replay import (
@@ -25,6 +29,7 @@ from regrasp_drake.station.replay import (
     save_html,
 )
 from regrasp_drake.station.scenario import load_scenario
+from regrasp_drake.station.station import add_station, build_episode_diagram
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world import robot
 from regrasp_drake.world.objects import load_catalogue
@@ -54,11 +59,19 @@ def _setup(cls):
     cls.obj = load_catalogue()[OBJECT]
 
 
+@functools.cache
+def _watched():
+    """The default scenario's watching throw of OBJECT, simulated once for
+    the module."""
+    scenario = load_scenario()
+    return watch(scenario, load_catalogue()[OBJECT], ArmIk(scenario.directives))
+
+
 class TestWatchedFlight(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         _setup(cls)
-        cls.first = watch(cls.scenario, cls.obj, cls.ik)
+        cls.first = _watched()
         cls.second = watch(cls.scenario, cls.obj, cls.ik)
 
     def test_watching_throw_lands(self):
@@ -115,8 +128,7 @@ class TestCatch(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         _setup(cls)
-        watched = watch(cls.scenario, cls.obj, cls.ik)
-        cls.plan = plan_catch(cls.scenario, cls.obj, cls.ik, watched)
+        cls.plan = plan_catch(cls.scenario, cls.obj, cls.ik, _watched())
         c = cls.scenario.catch
         cls.tmp = tempfile.TemporaryDirectory()
         cls.html = Path(cls.tmp.name) / "episode.html"
@@ -195,6 +207,72 @@ def _momentum_drift(logs, obj, scenario) -> float:
 def _rotation(quaternion_wxyz):
     q = np.asarray(quaternion_wxyz, float)
     return RotationMatrix(Quaternion(q / np.linalg.norm(q))).matrix()
+
+
+
+class TestStationPorts(unittest.TestCase):
+    """The station alone, its named ports exported, is a Diagram that
+    something other than the catch controller can drive."""
+
+    @classmethod
+    def setUpClass(cls):
+        _setup(cls)
+        builder = DiagramBuilder()
+        cls.station = add_station(builder, cls.scenario, cls.obj)
+        for name, port in cls.station.inputs.items():
+            builder.ExportInput(port, name)
+        for name, port in cls.station.outputs.items():
+            builder.ExportOutput(port, name)
+        cls.diagram = builder.Build()
+
+    def test_named_ports(self):
+        self.assertEqual(
+            sorted(self.diagram.get_input_port(i).get_name()
+                   for i in range(self.diagram.num_input_ports())),
+            ["arm_desired_acceleration", "arm_desired_state",
+             "hand_desired_state"])
+        self.assertEqual(
+            sorted(self.diagram.get_output_port(i).get_name()
+                   for i in range(self.diagram.num_output_ports())),
+            ["arm_state", "body_poses", "bumper", "contact_results",
+             "hand_state", "ir_levels", "net_actuation", "object_state",
+             "query_object"])
+        with self.assertRaisesRegex(KeyError, "no output port 'phase'"):
+            self.station.GetOutputPort("phase")
+
+    def test_held_arm_stays_and_ports_read_the_plant(self):
+        """Driven by constant references (the arm held at its start, the
+        fingers open), the arm stays put and holds the object up."""
+        context = self.diagram.CreateDefaultContext()
+        plant = self.station.plant
+        plant_context = plant.GetMyMutableContextFromRoot(context)
+        q0 = throw.start_q(self.scenario.throw)
+        plant.SetPositions(plant_context, self.station.arm, q0)
+        plant.SetFreeBodyPose(plant_context, self.station.object_body,
+                              self.station.X_WO_initial)
+        self.diagram.GetInputPort("arm_desired_state").FixValue(
+            context, np.concatenate([q0, np.zeros(6)]))
+        self.diagram.GetInputPort("arm_desired_acceleration").FixValue(
+            context, np.zeros(6))
+        self.diagram.GetInputPort("hand_desired_state").FixValue(
+            context, np.zeros(20))
+        simulator = Simulator(self.diagram, context)
+        simulator.AdvanceTo(0.1)
+        arm = self.diagram.GetOutputPort("arm_state").Eval(context)
+        self.assertLess(np.abs(arm[:6] - q0).max(), 1e-3)
+        state = self.diagram.GetOutputPort("object_state").Eval(context)
+        np.testing.assert_array_equal(state, plant.GetPositionsAndVelocities(
+            plant_context, self.station.object_body.model_instance()))
+        self.assertGreater(state[6], 0.3)  # held up, not on the ground
+        np.testing.assert_array_equal(
+            self.station.Eval("object_state", context), state)
+
+    def test_inverse_kinematics_of_other_directives_refused(self):
+        other = robot.robot_directives()
+        other[0].add_model.default_joint_positions = {"joint1": [0.1]}
+        with self.assertRaisesRegex(ValueError, "ArmIk"):
+            build_episode_diagram(self.scenario, self.obj, ik=ArmIk(other),
+                                  X_WG=None)
 
 
 if __name__ == "__main__":

@@ -155,7 +155,7 @@ def _object_task(args):
     torch.set_num_threads(1)
     scenario = load_scenario(scenario_path)
     obj = resolve_object(name=name)
-    ik = ArmIk()
+    ik = ArmIk(scenario.directives)
     out_dir = Path(out_dir)
     watched = watch(scenario, obj, ik)
     # The free-flight state at the end of the throw: the flight predictor's

@@ -321,7 +321,7 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
         flight_predictor=flight_predictor, at_release=at_release,
         search=search, prior_maps=prior_maps, prior_features=prior_features,
         max_throws=max_throws, library_path=library_path)
-    phase = _Phase(scenario, obj, model, ik or ArmIk(), prior=prior,
+    phase = _Phase(scenario, obj, model, ik or ArmIk(scenario.directives), prior=prior,
                    at_release=at_release, meshcat=meshcat,
                    on_episode=on_episode, progress=progress)
     # Throw 1 watches (or the flight is predicted); the offline stage plans
@@ -646,7 +646,8 @@ def apply_learned(scenario: Scenario, obj: ObjectSpec,
     """The applying phase: one throw, caught with the learned grasp pose and
     (h_catch, h_down)."""
     check_entry(scenario, obj, entry)
-    return run_episode(scenario, obj, ik=ik or ArmIk(), X_WG=entry.X_WG,
+    return run_episode(scenario, obj, ik=ik or ArmIk(scenario.directives),
+                       X_WG=entry.X_WG,
                        catch_parameters=(entry.h_catch, entry.h_down),
                        meshcat=meshcat)
 

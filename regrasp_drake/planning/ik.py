@@ -6,21 +6,22 @@ solve, no optimizer. The task frame is the hand's `palm_surface` frame P
 """
 
 import dataclasses as dc
-import functools
 
 import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.multibody.parsing import ModelDirective
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import JacobianWrtVariable
 
 from regrasp_drake.world import robot
 
 
-@functools.lru_cache(maxsize=1)
-def palm_in_flange() -> RigidTransform:
-    """X_6P: the palm_surface frame in the PUMA's link6 frame (fixed weld)."""
+def palm_in_flange(directives: list[ModelDirective] | None = None
+                   ) -> RigidTransform:
+    """X_6P: the palm_surface frame in the PUMA's link6 frame (fixed weld),
+    for the robot of the model directives (default: the shipped robot's)."""
     plant = MultibodyPlant(0.0)
-    robot.add_puma_and_hand(plant)
+    robot.add_puma_and_hand(plant, directives)
     plant.Finalize()
     context = plant.CreateDefaultContext()
     return plant.CalcRelativeTransform(
@@ -53,15 +54,23 @@ class IkResult:
 
 
 class ArmIk:
-    """Solves q such that X_WP(q) = X_WP_desired for the hand's palm frame."""
+    """Solves q such that X_WP(q) = X_WP_desired for the hand's palm frame,
+    on the arm-only plant of the robot's model directives (default: the
+    shipped robot's; pass a scenario's `directives`)."""
 
-    def __init__(self):
-        self._plant = robot.make_arm_control_plant()
+    def __init__(self, directives: list[ModelDirective] | None = None):
+        self._directives = list(directives or robot.robot_directives())
+        self._plant = robot.arm_control_plant(self._directives)
         self._context = self._plant.CreateDefaultContext()
         self._frame6 = self._plant.GetFrameByName("link6")
-        self._X_6P = palm_in_flange()
+        self._X_6P = palm_in_flange(self._directives)
         self._lower = self._plant.GetPositionLowerLimits()
         self._upper = self._plant.GetPositionUpperLimits()
+
+    @property
+    def directives(self) -> list[ModelDirective]:
+        """The robot's model directives this was built for."""
+        return self._directives
 
     @property
     def plant(self) -> MultibodyPlant:

@@ -36,7 +36,7 @@ from regrasp_drake.station.episode import (
     read_outcome,
 )
 from regrasp_drake.station.station import (
-    build_station,
+    build_episode_diagram,
     continue_with,
     initialize,
 )
@@ -60,27 +60,27 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
     """
     t0 = time.perf_counter()
     parameters = [(float(h), float(d)) for h, d in parameters]
-    station = build_station(scenario, obj, ik=ik, X_WG=X_WG,
-                            catch_parameters=(0.0, 0.0))
-    simulator = initialize(station, scenario)
+    episode = build_episode_diagram(scenario, obj, ik=ik, X_WG=X_WG,
+                                    catch_parameters=(0.0, 0.0))
+    simulator = initialize(episode, scenario)
     if handoff is not None:
         t_handoff, later = handoff
-        advance_to_outcome(simulator, station, scenario, t_handoff)
-        phase = station.state_machine.GetOutputPort("phase").Eval(
-            station.state_machine.GetMyContextFromRoot(
-                simulator.get_context()))[0]
+        advance_to_outcome(simulator, episode, scenario, t_handoff)
+        machine = episode.controller.state_machine
+        phase = machine.GetOutputPort("phase").Eval(
+            machine.GetMyContextFromRoot(simulator.get_context()))[0]
         if phase >= Phase.WAIT:
             raise ValueError(f"handoff at t = {t_handoff} s: the hand already "
                              "waits (a cell may have triggered)")
-        other = build_station(later, obj, ik=ik, X_WG=X_WG,
-                              catch_parameters=(0.0, 0.0))
-        simulator = continue_with(simulator, station, other, later)
-        station, scenario = other, later
-    source = station.diagram.GetSubsystemByName("catch_parameters")
-    ir = station.diagram.GetSubsystemByName("infrared")
-    machine = station.state_machine
+        other = build_episode_diagram(later, obj, ik=ik, X_WG=X_WG,
+                                      catch_parameters=(0.0, 0.0))
+        simulator = continue_with(simulator, episode, other, later)
+        episode, scenario = other, later
+    source = episode.controller.parameters
+    ir_levels = episode.station.GetOutputPort("ir_levels")
+    machine = episode.controller.state_machine
     context = simulator.get_mutable_context()
-    ir_context = ir.GetMyContextFromRoot(context)
+    ir_context = ir_levels.get_system().GetMyContextFromRoot(context)
     machine_context = machine.GetMyContextFromRoot(context)
     source_context = source.GetMyMutableContextFromRoot(context)
 
@@ -132,7 +132,7 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
             try:
                 signal.pthread_sigmask(signal.SIG_SETMASK, mask)
                 os.close(read_fd)
-                result = _run_child(simulator, station, scenario, source,
+                result = _run_child(simulator, episode, scenario, source,
                                     source_context, parameters[group[0]],
                                     t_final)
                 with os.fdopen(write_fd, "wb") as f:
@@ -150,17 +150,17 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
         while waiting:
             check_interrupt()
             k += 1
-            message = advance_to_outcome(simulator, station, scenario,
+            message = advance_to_outcome(simulator, episode, scenario,
                                          min(k * period, t_final))
-            done = read_outcome(station, context, message)[0] != "running"
+            done = read_outcome(episode, context, message)[0] != "running"
             if message or done or context.get_time() >= t_final:
                 break
             phase = machine.GetOutputPort("phase").Eval(machine_context)[0]
             if phase != Phase.WAIT:
                 continue
             # What the state machine's check at this time will read.
-            distance = (float(np.min(ir.GetOutputPort("ir_levels").Eval(
-                ir_context)[3:])) / levels * approach_range)
+            distance = (float(np.min(ir_levels.Eval(ir_context)[3:]))
+                        / levels * approach_range)
             triggered = []
             while waiting and distance < waiting[0]:
                 triggered.append(waiting.pop(0))
@@ -173,16 +173,16 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
         # Cells that never triggered share the parent's history to its end.
         if any(h in waiting for h, _ in parameters):
             if (not message
-                    and read_outcome(station, context, "")[0] == "running"):
-                message = advance_to_outcome(simulator, station, scenario,
+                    and read_outcome(episode, context, "")[0] == "running"):
+                message = advance_to_outcome(simulator, episode, scenario,
                                              t_final)
-            outcome, grasp_t = read_outcome(station, context, message)
+            outcome, grasp_t = read_outcome(episode, context, message)
             shared = dict(
                 outcome=outcome, sim_time_s=round(context.get_time(), 4),
                 catch_time_s=grasp_t, message=message,
                 wall_s=round(time.perf_counter() - t0, 3),
-                p_WO_final=_object_position(station, context),
-                **read_ending(station, context, outcome))
+                p_WO_final=_object_position(episode, context),
+                **read_ending(episode, context, outcome))
             for i, (h, d) in enumerate(parameters):
                 if h in waiting:
                     rows[i] = {"h_catch": h, "h_down": d} | shared
@@ -206,23 +206,24 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
     return rows
 
 
-def _run_child(simulator, station, scenario, source, source_context,
+def _run_child(simulator, episode, scenario, source, source_context,
                cell_parameters, t_final) -> dict:
     t0 = time.perf_counter()
     source.get_mutable_source_value(source_context).SetFromVector(
         list(cell_parameters))
     context = simulator.get_context()
-    message = advance_to_outcome(simulator, station, scenario, t_final)
-    outcome, grasp_t = read_outcome(station, context, message)
+    message = advance_to_outcome(simulator, episode, scenario, t_final)
+    outcome, grasp_t = read_outcome(episode, context, message)
     return dict(outcome=outcome, sim_time_s=round(context.get_time(), 4),
                 catch_time_s=grasp_t, message=message,
                 wall_s=round(time.perf_counter() - t0, 3),
-                p_WO_final=_object_position(station, context),
-                **read_ending(station, context, outcome))
+                p_WO_final=_object_position(episode, context),
+                **read_ending(episode, context, outcome))
 
 
-def _object_position(station, context) -> list:
+def _object_position(episode, context) -> list:
     """The object's final position (m), unrounded: it shows any difference."""
+    station = episode.station
     plant_context = station.plant.GetMyContextFromRoot(context)
     return station.plant.EvalBodyPoseInWorld(
         plant_context, station.object_body).translation().tolist()

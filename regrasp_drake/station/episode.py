@@ -15,7 +15,12 @@ from regrasp_drake.station.grasp_monitor import (
     contact_verdict,
 )
 from regrasp_drake.station.scenario import Scenario
-from regrasp_drake.station.station import build_station, initialize
+from regrasp_drake.station.station import (
+    EpisodeDiagram,
+    Loggers,
+    build_episode_diagram,
+    initialize,
+)
 from regrasp_drake.world.objects import ObjectSpec
 
 
@@ -86,29 +91,29 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
     propagates). Requires catch_parameters and an X_WG (any: it is
     replaced)."""
     t0 = time.perf_counter()
-    station = build_station(scenario, obj, ik=ik, X_WG=X_WG,
-                            catch_parameters=catch_parameters,
-                            mlp_features=mlp_features, meshcat=meshcat,
-                            throw_number=throw_number)
+    episode = build_episode_diagram(
+        scenario, obj, ik=ik, X_WG=X_WG, catch_parameters=catch_parameters,
+        mlp_features=mlp_features, meshcat=meshcat, throw_number=throw_number)
     if meshcat is not None:
         meshcat.StartRecording(set_visualizations_while_recording=False)
-    simulator = initialize(station, scenario)
+    simulator = initialize(episode, scenario)
     build_s = time.perf_counter() - t0
     if at_release is not None:
         try:
-            _plan_at_release(simulator, station, scenario, at_release)
+            _plan_at_release(simulator, episode, scenario, at_release)
         except Exception:
             if meshcat is not None:
                 meshcat.StopRecording()
             raise
-    message = advance_to_outcome(simulator, station, scenario)
+    message = advance_to_outcome(simulator, episode, scenario)
     wall_s = time.perf_counter() - t0
     if meshcat is not None:
         meshcat.StopRecording()
         meshcat.PublishRecording()
     context = simulator.get_context()
-    outcome, grasp_t = read_outcome(station, context, message)
-    logs = _read_logs(station, context)
+    outcome, grasp_t = read_outcome(episode, context, message)
+    logs = _read_logs(episode.loggers, context)
+    station = episode.station
     h = logs.params[:, -1] if logs.params.shape[1] else (None, None)
     return EpisodeResult(
         object=obj.name, outcome=outcome,
@@ -119,7 +124,7 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
         p_WO_final=station.plant.EvalBodyPoseInWorld(
             station.plant.GetMyContextFromRoot(context),
             station.object_body).translation().tolist(),
-        **read_ending(station, context, outcome))
+        **read_ending(episode, context, outcome))
 
 
 def release_time(scenario: Scenario) -> float:
@@ -132,7 +137,8 @@ def release_time(scenario: Scenario) -> float:
     return math.ceil(t / period - 1e-9) * period
 
 
-def _plan_at_release(simulator, station, scenario, at_release) -> None:
+def _plan_at_release(simulator, episode: EpisodeDiagram, scenario,
+                     at_release) -> None:
     """Advances to the release time, asks at_release for the plan, and sets
     the grasp pose and catch parameters in the context. Drake handles the
     update events of a time at the start of the next step, so the state
@@ -140,20 +146,19 @@ def _plan_at_release(simulator, station, scenario, at_release) -> None:
     t = release_time(scenario)
     simulator.AdvanceTo(t)
     context = simulator.get_mutable_context()
-    plant = station.plant
-    state = plant.GetPositionsAndVelocities(
-        plant.GetMyContextFromRoot(context),
-        station.object_body.model_instance())
+    station, controller = episode.station, episode.controller
+    state = station.Eval("object_state", context)
     X_WG, parameters = at_release(np.asarray(state).copy(), t)
-    grasp = station.diagram.GetSubsystemByName("X_WG")
+    grasp = controller.grasp_pose
     grasp.set_pose(grasp.GetMyMutableContextFromRoot(context), X_WG)
-    source = station.diagram.GetSubsystemByName("catch_parameters")
+    source = controller.parameters
     source.get_mutable_source_value(
         source.GetMyMutableContextFromRoot(context)).SetFromVector(
         list(parameters))
 
 
-def advance_to_outcome(simulator, station, scenario, t_final=None) -> str:
+def advance_to_outcome(simulator, episode: EpisodeDiagram, scenario,
+                       t_final=None) -> str:
     """Advances until the grasp monitor (or a failure) ends the episode, or
     to t_final. Returns "" or the failure's message: an unreachable pose, or
     a failed contact solve (recorded, never raised)."""
@@ -161,24 +166,25 @@ def advance_to_outcome(simulator, station, scenario, t_final=None) -> str:
         t_final = scenario.monitor.max_time_s + 1.0
     try:
         status = simulator.AdvanceTo(t_final)
-        if status.system() is station.state_machine:  # an unreachable pose
+        # An unreachable pose.
+        if status.system() is episode.controller.state_machine:
             return status.message()
     except Exception as e:  # a failed contact solve
         return str(e).strip().splitlines()[0] if str(e).strip() else repr(e)
     return ""
 
 
-def read_outcome(station, context, message: str) -> tuple[str, float | None]:
+def read_outcome(episode: EpisodeDiagram, context,
+                 message: str) -> tuple[str, float | None]:
     """The episode's outcome name and the time the grasp was recognized."""
-    monitor_state = station.monitor.GetOutputPort("monitor_state").Eval(
-        station.monitor.GetMyContextFromRoot(context))
+    monitor_state = _monitor_state(episode, context)
     outcome = "failed" if message else GraspMonitor.outcome(
         monitor_state).name.lower()
     grasp_t = GraspMonitor.grasp_time(monitor_state)
     return outcome, (grasp_t if grasp_t >= 0 else None)
 
 
-def read_ending(station, context, outcome: str) -> dict:
+def read_ending(episode: EpisodeDiagram, context, outcome: str) -> dict:
     """How the episode ended, beyond its outcome: `drop_reason`, which of
     the grasp monitor's tests made it dropped ("near_ground", "below_palm",
     "not_held"; None unless dropped), and, from the plant's contact results
@@ -192,9 +198,9 @@ def read_ending(station, context, outcome: str) -> dict:
     does not change the simulation."""
     reason = None
     if outcome == "dropped":
-        monitor_state = station.monitor.GetOutputPort("monitor_state").Eval(
-            station.monitor.GetMyContextFromRoot(context))
-        reason = GraspMonitor.drop_reason(monitor_state).name.lower()
+        reason = GraspMonitor.drop_reason(
+            _monitor_state(episode, context)).name.lower()
+    station = episode.station
     plant = station.plant
     try:
         contacts = contact_verdict(
@@ -209,17 +215,20 @@ _CONTACT_FIELDS = ("touching", "held_by_contact", "slip_m_per_s",
                    "spin_rad_per_s")
 
 
-def _read_logs(station, context) -> Logs:
-    def log(name):
-        sink = station.loggers[name]
-        return sink.FindLog(context)
-    obj = log("object")
-    return Logs(t=obj.sample_times().copy(), object_state=obj.data().copy(),
-                ir=log("ir").data().copy(), bumper=log("bumper").data()[0].copy(),
-                phase=log("phase").data()[0].copy(),
-                actuation=log("actuation").data().copy(),
-                arm_state=log("arm").data().copy(),
-                params=log("params").data().copy())
+def _monitor_state(episode: EpisodeDiagram, context) -> np.ndarray:
+    monitor = episode.controller.monitor
+    return monitor.GetOutputPort("monitor_state").Eval(
+        monitor.GetMyContextFromRoot(context))
+
+
+def _read_logs(loggers: Loggers, context) -> Logs:
+    def log(sink):
+        return sink.FindLog(context).data().copy()
+    times = loggers.object.FindLog(context).sample_times().copy()
+    return Logs(t=times, object_state=log(loggers.object),
+                ir=log(loggers.ir), bumper=log(loggers.bumper)[0],
+                phase=log(loggers.phase)[0], actuation=log(loggers.actuation),
+                arm_state=log(loggers.arm), params=log(loggers.params))
 
 
 __all__ = ["EpisodeResult", "Logs", "Outcome", "run_episode"]

@@ -44,7 +44,12 @@ from pydrake.systems.analysis import (
 from regrasp_drake.errors import InputError, field_error, quote
 from regrasp_drake.input_files import Tagged, dump_yaml, load_yaml, parse_yaml
 from regrasp_drake.parameter_space import H_CATCH_RANGE, H_DOWN_RANGE
-from regrasp_drake.world.robot import arm_joint_limits, robot_directives
+from regrasp_drake.world.robot import (
+    ARM_MODEL_NAME,
+    HAND_MODEL_NAME,
+    arm_joint_limits,
+    robot_directives,
+)
 
 # The named scenarios (name -> scenario), and the one used by default.
 SCENARIOS_PATH = Path(__file__).resolve().parents[1] / "scenarios.yaml"
@@ -315,10 +320,11 @@ class Scenario:
         default_factory=SimulatorConfig)
     # The robot's model directives (default: sdf/puma560_hand.dmd.yaml, the
     # PUMA welded to the world, the hand to its flange); they must add the
-    # models "puma560" and "hand". The arm's inverse-dynamics and inverse-
-    # kinematics plants are built from the shipped directives whatever these
-    # say: a list that moves the arm or the hand's mount is planned and
-    # controlled as the shipped robot.
+    # models "puma560" and "hand", the hand welded to a link of the arm. The
+    # arm-only plant of the inverse-dynamics controller and of the inverse
+    # kinematics is built from these too (robot.make_arm_control_plant), so
+    # a list that moves the arm or the hand's mount is planned and
+    # controlled as the robot it builds (ArmIk(scenario.directives)).
     directives: list[ModelDirective] = dc.field(
         default_factory=robot_directives)
     # Gravity's magnitude, pointing along -z, [m/s²].
@@ -383,6 +389,7 @@ def validate(s: Scenario) -> Scenario:
         _in_range("plant_config.time_step", dt, 1e-5, 5e-3,
                   " s, or 0 (a continuous plant)")
     _check_simulator_config(s.simulator_config, continuous=dt == 0.0)
+    _check_directives(s.directives)
     if s.plant_config.contact_model != "point":
         raise field_error("plant_config.contact_model",
                           s.plant_config.contact_model, "'point'")
@@ -496,6 +503,23 @@ def validate(s: Scenario) -> Scenario:
     _in_range("monitor.ground_clearance_m", m.ground_clearance_m, 0.0, 1.0, " m")
     _in_range("monitor.max_time_s", m.max_time_s, 0.5, 60.0, " s")
     return s
+
+
+def _check_directives(directives: list[ModelDirective]) -> None:
+    """The robot's directives add the arm and the hand and weld the hand to
+    one frame of the arm, where the arm-only plant of the controller and the
+    inverse kinematics carries it (robot.make_arm_control_plant)."""
+    models = [d.add_model.name for d in directives if d.add_model]
+    if ARM_MODEL_NAME not in models or HAND_MODEL_NAME not in models:
+        raise field_error("directives", models, f"add_model entries named "
+                          f"{ARM_MODEL_NAME!r} and {HAND_MODEL_NAME!r}")
+    mounts = [d.add_weld.parent for d in directives if d.add_weld
+              and d.add_weld.child.startswith(f"{HAND_MODEL_NAME}::")]
+    if len(mounts) != 1 or not mounts[0].startswith(f"{ARM_MODEL_NAME}::"):
+        raise field_error(
+            "directives", mounts, f"the hand welded (add_weld, child "
+            f"{HAND_MODEL_NAME}::...) to one frame of the arm (parent "
+            f"{ARM_MODEL_NAME}::...)")
 
 
 def _check_simulator_config(c: SimulatorConfig, continuous: bool) -> None:

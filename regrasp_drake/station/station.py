@@ -1,12 +1,15 @@
-"""The throw-and-catch station: one Diagram, built top to bottom.
+"""The throw-and-catch station, and the catch controller wired to it.
 
-PUMA 560 + hand + object in a MultibodyPlant with point contact; an
+`add_station`: the station, with named ports as Drake's hardware stations
+have: PUMA 560 + hand + object in a MultibodyPlant with point contact; an
 inverse-dynamics controller for the arm on its own arm-only plant; PD servos
 for the fingers (in the plant when it is discrete; on a continuous plant,
 which Drake's in-plant PD does not support, the same PD outside it, see
-add_finger_servos); the infrared sensors and the tactile bumper; the catch state
-machine; the source of the catch parameters (fixed, or the MLP); the grasp
-monitor; loggers; Meshcat when asked.
+add_finger_servos); the infrared sensors and the tactile bumper.
+`add_catch_controller`: the catch state machine, the source of the catch
+parameters (fixed, or the MLP) and the grasp monitor, outside the station.
+`build_episode_diagram`: one episode's diagram, the two wired top to bottom
+with the loggers and Meshcat.
 """
 
 import copy
@@ -34,21 +37,34 @@ from pydrake.multibody.plant import (
     CoulombFriction,
     MultibodyPlant,
 )
-from pydrake.multibody.tree import PdControllerGains
+from pydrake.multibody.tree import (
+    ModelInstanceIndex,
+    PdControllerGains,
+    RigidBody,
+)
 from pydrake.systems.analysis import (
     ApplySimulatorConfig,
     InitializeParams,
     Simulator,
 )
 from pydrake.systems.controllers import InverseDynamicsController
-from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.framework import (
+    Context,
+    Diagram,
+    DiagramBuilder,
+    InputPort,
+    LeafSystem,
+    OutputPort,
+)
 from pydrake.systems.primitives import (
     ConstantVectorSource,
     LogVectorOutput,
     MatrixGain,
     Multiplexer,
+    VectorLogSink,
 )
 
+from regrasp_drake.errors import InputError
 from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
@@ -58,7 +74,6 @@ from regrasp_drake.station.catch_state_machine import (
 )
 from regrasp_drake.station.grasp_monitor import GraspMonitor
 from regrasp_drake.station.mlp_system import MlpSystem, load_weights
-from regrasp_drake.errors import InputError
 from regrasp_drake.station.scenario import Scenario, scenario_digest
 from regrasp_drake.station.sensors import InfraredSensors, TactileBumper
 from regrasp_drake.world import robot
@@ -106,36 +121,93 @@ class GraspPoseSource(LeafSystem):
 
 @dc.dataclass
 class Station:
-    """The built diagram and handles to what an episode reads back."""
-    diagram: Diagram
+    """The station's systems in an episode's diagram and its ports by name
+    (see `add_station`), read as a hardware station Diagram's exported
+    ports are: `GetInputPort(name)`, `GetOutputPort(name)`."""
     plant: MultibodyPlant
-    object_body: object
-    arm: object
-    hand: object
+    scene_graph: SceneGraph
+    arm: ModelInstanceIndex
+    hand: ModelInstanceIndex
+    object_body: RigidBody
+    infrared: InfraredSensors
+    bumper: TactileBumper
+    X_WO_initial: RigidTransform  # the object's pose in the open palm
+    inputs: dict[str, InputPort]
+    outputs: dict[str, OutputPort]
+
+    def GetInputPort(self, name: str) -> InputPort:
+        return _port(self.inputs, name, "input")
+
+    def GetOutputPort(self, name: str) -> OutputPort:
+        return _port(self.outputs, name, "output")
+
+    def Eval(self, name: str, root_context: Context):
+        """The value of the output port `name` in the diagram's context."""
+        port = self.GetOutputPort(name)
+        return port.Eval(port.get_system().GetMyContextFromRoot(root_context))
+
+
+def _port(ports: dict, name: str, kind: str):
+    if name not in ports:
+        raise KeyError(f"the station has no {kind} port {name!r}; expected "
+                       f"one of {sorted(ports)}")
+    return ports[name]
+
+
+@dc.dataclass
+class CatchController:
+    """The catch controller's systems, wired to a station's ports."""
     state_machine: CatchStateMachine
     monitor: GraspMonitor
-    loggers: dict
-    X_WO_initial: RigidTransform
+    grasp_pose: GraspPoseSource
+    # The catch parameters' source: fixed (its value settable in a context),
+    # or the MLP system.
+    parameters: ConstantVectorSource | MlpSystem
+
+
+@dc.dataclass
+class Loggers:
+    """Signals logged at the sensors' rate."""
+    object: VectorLogSink      # the object's state (13)
+    ir: VectorLogSink          # the infrared levels (13)
+    bumper: VectorLogSink      # (1)
+    phase: VectorLogSink       # the state machine's phase (1)
+    actuation: VectorLogSink   # the plant's net actuation (16), [N·m]
+    arm: VectorLogSink         # the arm's state (12)
+    params: VectorLogSink      # (h_catch, h_down), [m]
+
+
+@dc.dataclass
+class EpisodeDiagram:
+    """One episode's diagram: the station, the catch controller wired to
+    its ports, the loggers and Meshcat."""
+    diagram: Diagram
+    station: Station
+    controller: CatchController
+    loggers: Loggers
     meshcat: Meshcat | None
 
 
-def build_station(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
-                  X_WG: RigidTransform | None, catch_parameters=None,
-                  mlp_features=None, meshcat: Meshcat | None = None,
-                  throw_number: int = 1) -> Station:
-    """Builds the station for one episode.
+def add_station(builder: DiagramBuilder, scenario: Scenario,
+                obj: ObjectSpec) -> Station:
+    """Adds the station to `builder`: the plant (PUMA + hand + `obj`) and
+    its scene graph, the arm's inverse-dynamics controller (on an arm-only
+    plant built from the scenario's directives), the fingers' PD servos (in
+    the plant when it is discrete, beside it when continuous), the 13
+    infrared sensors and the tactile bumper. Whatever drives it (the catch
+    controller, or another) is wired to the returned Station's named ports:
 
-    X_WG: the palm's grasp pose; None makes a watching throw (no catch).
-    catch_parameters: (h_catch, h_down) in m, or None to take them as the
-    scenario's `catch.parameter_source` says: its fixed values, or the MLP
-    system fed with `mlp_features` (v_catch, h_cm, r_cm, d_obj, v_conv).
-    throw_number: which throw of a run this is; it seeds the release noise
-    when the scenario has any (throw.noise).
-    """
-    if catch_parameters is None and (
-            X_WG is None or scenario.catch.parameter_source == "fixed"):
-        catch_parameters = (scenario.catch.h_catch_m, scenario.catch.h_down_m)
-    builder = DiagramBuilder()
+    Input ports: `arm_desired_state` (q, v: 12), `arm_desired_acceleration`
+    (6), `hand_desired_state` (the finger joints' q, v: 20).
+    Output ports: `arm_state` (12), `hand_state` (20), `object_state` (13:
+    quaternion wxyz, p_WO, w_WO, v_WO), `body_poses`, `contact_results`,
+    `query_object`, `ir_levels` (13), `bumper` (1), `net_actuation` (16,
+    [N·m]).
+
+    The station's systems go into the episode's own builder, not into a
+    Diagram of their own as manipulation's MakeHardwareStation does: Drake's
+    CENIC integrator (a continuous plant) needs the MultibodyPlant as a
+    direct child, named "plant", of the diagram it simulates."""
     # The physics: PUMA + hand, the object, the ground (see add_world).
     plant, scene_graph, instances, object_body, object_geometries = (
         add_world(builder, scenario, obj))
@@ -144,12 +216,19 @@ def build_station(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
     # the torques to the servos' effort limits.
     arm_controller = builder.AddNamedSystem(
         "arm_controller", InverseDynamicsController(
-            ik.plant, scenario.arm.kp, scenario.arm.ki, scenario.arm.kd,
-            has_reference_acceleration=True))
+            robot.arm_control_plant(scenario.directives), scenario.arm.kp,
+            scenario.arm.ki, scenario.arm.kd, has_reference_acceleration=True))
     builder.Connect(plant.get_state_output_port(instances.arm),
                     arm_controller.get_input_port_estimated_state())
     builder.Connect(arm_controller.get_output_port_control(),
                     plant.get_actuation_input_port(instances.arm))
+
+    # The fingers: PD servos in the plant, or beside a continuous one.
+    if plant.time_step() > 0:
+        hand_desired_state = plant.get_desired_state_input_port(instances.hand)
+    else:
+        servos = add_finger_servos(builder, plant, instances.hand)
+        hand_desired_state = servos.get_input_port(0)
 
     # Sensors: 13 infrared range sensors and the tactile bumper.
     s = scenario.sensors
@@ -168,18 +247,53 @@ def build_station(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
     builder.Connect(plant.get_contact_results_output_port(),
                     bumper.GetInputPort("contact_results"))
 
+    # What drives the station, and what it shows.
+    inputs = {
+        "arm_desired_state": arm_controller.get_input_port_desired_state(),
+        "arm_desired_acceleration":
+            arm_controller.get_input_port_desired_acceleration(),
+        "hand_desired_state": hand_desired_state,
+    }
+    outputs = {
+        "arm_state": plant.get_state_output_port(instances.arm),
+        "hand_state": plant.get_state_output_port(instances.hand),
+        "object_state": plant.get_state_output_port(
+            object_body.model_instance()),
+        "body_poses": plant.get_body_poses_output_port(),
+        "contact_results": plant.get_contact_results_output_port(),
+        "net_actuation": plant.get_net_actuation_output_port(),
+        "query_object": scene_graph.get_query_output_port(),
+        "ir_levels": ir.GetOutputPort("ir_levels"),
+        "bumper": bumper.GetOutputPort("bumper"),
+    }
+    return Station(
+        plant=plant, scene_graph=scene_graph, arm=instances.arm,
+        hand=instances.hand, object_body=object_body, infrared=ir,
+        bumper=bumper,
+        X_WO_initial=_initial_object_pose(plant, instances, obj, scenario),
+        inputs=inputs, outputs=outputs)
+
+
+def add_catch_controller(builder: DiagramBuilder, station: Station,
+                         scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
+                         X_WG: RigidTransform | None, catch_parameters=None,
+                         mlp_features=None,
+                         throw_number: int = 1) -> CatchController:
+    """Adds the catch controller to `builder` and wires it to `station`
+    (added to the same builder): the catch parameters' source, the grasp
+    pose, the catch state machine (Fig. 9) and the grasp monitor (paper
+    §V.B), which stops the simulation at the outcome. Arguments as
+    `build_episode_diagram`'s."""
     # The catch parameters: fixed, or predicted by the MLP.
     if catch_parameters is not None:
         params = builder.AddNamedSystem(
             "catch_parameters", ConstantVectorSource(list(catch_parameters)))
-        params_port = params.get_output_port()
     else:
         model, _ = load_weights(MODELS_DIR / scenario.catch.weights)
-        mlp = builder.AddNamedSystem("mlp", MlpSystem(model))
+        params = builder.AddNamedSystem("mlp", MlpSystem(model))
         features = builder.AddNamedSystem(
             "features", ConstantVectorSource(list(mlp_features)))
-        builder.Connect(features.get_output_port(), mlp.get_input_port())
-        params_port = mlp.get_output_port()
+        builder.Connect(features.get_output_port(), params.get_input_port())
 
     # The catch state machine (Fig. 9).
     watching = X_WG is None
@@ -194,67 +308,84 @@ def build_station(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
     grasp = builder.AddNamedSystem("X_WG", GraspPoseSource(
         X_WG if X_WG is not None else RigidTransform()))
     builder.Connect(grasp.get_output_port(), machine.GetInputPort("X_WG"))
-    builder.Connect(ir.GetOutputPort("ir_levels"),
+    builder.Connect(station.GetOutputPort("ir_levels"),
                     machine.GetInputPort("ir_levels"))
-    builder.Connect(params_port, machine.GetInputPort("catch_parameters"))
-    builder.Connect(plant.get_state_output_port(instances.arm),
+    builder.Connect(params.get_output_port(),
+                    machine.GetInputPort("catch_parameters"))
+    builder.Connect(station.GetOutputPort("arm_state"),
                     machine.GetInputPort("arm_state"))
-    builder.Connect(machine.GetOutputPort("arm_desired_state"),
-                    arm_controller.get_input_port_desired_state())
-    builder.Connect(machine.GetOutputPort("arm_desired_acceleration"),
-                    arm_controller.get_input_port_desired_acceleration())
-    if plant.time_step() > 0:  # the fingers' PD servos are in the plant
-        builder.Connect(machine.GetOutputPort("hand_desired_state"),
-                        plant.get_desired_state_input_port(instances.hand))
-    else:
-        servos = add_finger_servos(builder, plant, instances.hand)
-        builder.Connect(machine.GetOutputPort("hand_desired_state"),
-                        servos.get_input_port(0))
+    for name in ("arm_desired_state", "arm_desired_acceleration",
+                 "hand_desired_state"):
+        builder.Connect(machine.GetOutputPort(name),
+                        station.GetInputPort(name))
 
     # The grasp monitor (paper §V.B); it stops the simulation at the outcome.
-    palm = plant.GetBodyByName("palm", instances.hand)
+    plant = station.plant
+    palm = plant.GetBodyByName("palm", station.hand)
     monitor = builder.AddNamedSystem("grasp_monitor", GraspMonitor(
-        scenario, object_body.index(), palm.index(),
-        plant.GetFrameByName("palm_surface", instances.hand)
+        scenario, station.object_body.index(), palm.index(),
+        plant.GetFrameByName("palm_surface", station.hand)
         .GetFixedPoseInBodyFrame(),
         obj.bounding_radius, watching=watching))
-    builder.Connect(ir.GetOutputPort("ir_levels"), monitor.GetInputPort("ir_levels"))
-    builder.Connect(bumper.GetOutputPort("bumper"), monitor.GetInputPort("bumper"))
-    builder.Connect(plant.get_state_output_port(instances.hand),
-                    monitor.GetInputPort("hand_state"))
+    for name in ("ir_levels", "bumper", "hand_state", "body_poses"):
+        builder.Connect(station.GetOutputPort(name),
+                        monitor.GetInputPort(name))
     builder.Connect(machine.GetOutputPort("hand_desired_state"),
                     monitor.GetInputPort("hand_desired_state"))
     builder.Connect(machine.GetOutputPort("phase"), monitor.GetInputPort("phase"))
-    builder.Connect(plant.get_body_poses_output_port(),
-                    monitor.GetInputPort("body_poses"))
+    return CatchController(state_machine=machine, monitor=monitor,
+                           grasp_pose=grasp, parameters=params)
+
+
+def build_episode_diagram(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
+                          X_WG: RigidTransform | None, catch_parameters=None,
+                          mlp_features=None, meshcat: Meshcat | None = None,
+                          throw_number: int = 1) -> EpisodeDiagram:
+    """One episode's diagram: the station, the catch controller wired to
+    its ports, the loggers, Meshcat when asked.
+
+    X_WG: the palm's grasp pose; None makes a watching throw (no catch).
+    catch_parameters: (h_catch, h_down) in m, or None to take them as the
+    scenario's `catch.parameter_source` says: its fixed values, or the MLP
+    system fed with `mlp_features` (v_catch, h_cm, r_cm, d_obj, v_conv).
+    throw_number: which throw of a run this is; it seeds the release noise
+    when the scenario has any (throw.noise).
+    """
+    if catch_parameters is None and (
+            X_WG is None or scenario.catch.parameter_source == "fixed"):
+        catch_parameters = (scenario.catch.h_catch_m, scenario.catch.h_down_m)
+    if robot.directives_yaml(ik.directives) != robot.directives_yaml(
+            scenario.directives):
+        raise ValueError("build_episode_diagram: the ArmIk was built for "
+                         "other directives than the scenario's; expected "
+                         "ArmIk(scenario.directives)")
+    builder = DiagramBuilder()
+    # The station: plant, arm controller, finger servos, sensors.
+    station = add_station(builder, scenario, obj)
+    # The catch controller, wired to the station's ports.
+    controller = add_catch_controller(
+        builder, station, scenario, obj, ik=ik, X_WG=X_WG,
+        catch_parameters=catch_parameters, mlp_features=mlp_features,
+        throw_number=throw_number)
 
     # Loggers, sampled at the sensors' rate.
-    period = s.period_s
-    loggers = {
-        "object": LogVectorOutput(
-            plant.get_state_output_port(object_body.model_instance()),
-            builder, period),
-        "ir": LogVectorOutput(ir.GetOutputPort("ir_levels"), builder, period),
-        "bumper": LogVectorOutput(bumper.GetOutputPort("bumper"), builder, period),
-        "phase": LogVectorOutput(machine.GetOutputPort("phase"), builder, period),
-        "actuation": LogVectorOutput(plant.get_net_actuation_output_port(),
-                                     builder, period),
-        "arm": LogVectorOutput(plant.get_state_output_port(instances.arm),
-                               builder, period),
-        "params": LogVectorOutput(params_port, builder, period),
-    }
+    def log(port):
+        return LogVectorOutput(port, builder, scenario.sensors.period_s)
+    out = station.GetOutputPort
+    loggers = Loggers(
+        object=log(out("object_state")), ir=log(out("ir_levels")),
+        bumper=log(out("bumper")),
+        phase=log(controller.state_machine.GetOutputPort("phase")),
+        actuation=log(out("net_actuation")), arm=log(out("arm_state")),
+        params=log(controller.parameters.get_output_port()))
     # Meshcat, when asked (loopback only; see replay.make_meshcat).
     if meshcat is not None:
         MeshcatVisualizer.AddToBuilder(
-            builder, scene_graph, meshcat,
+            builder, out("query_object"), meshcat,
             MeshcatVisualizerParams(publish_period=1 / 60))
-    diagram = builder.Build()
-
-    X_WO = _initial_object_pose(plant, instances, obj, scenario)
-    return Station(diagram=diagram, plant=plant, object_body=object_body,
-                   arm=instances.arm, hand=instances.hand,
-                   state_machine=machine, monitor=monitor, loggers=loggers,
-                   X_WO_initial=X_WO, meshcat=meshcat)
+    return EpisodeDiagram(diagram=builder.Build(), station=station,
+                          controller=controller, loggers=loggers,
+                          meshcat=meshcat)
 
 
 def add_world(builder: DiagramBuilder, scenario: Scenario, obj: ObjectSpec):
@@ -519,14 +650,15 @@ def _lowest_z(obj) -> float:
     return lowest
 
 
-def initialize(station: Station, scenario: Scenario) -> Simulator:
+def initialize(episode: EpisodeDiagram, scenario: Scenario) -> Simulator:
     """A simulator at the episode's initial conditions (identical each time),
     integrating as the scenario's simulator_config says."""
-    simulator = Simulator(station.diagram)
+    simulator = Simulator(episode.diagram)
     ApplySimulatorConfig(scenario.simulator_config, simulator)
-    context = simulator.get_mutable_context()
+    station = episode.station
     plant = station.plant
-    plant_context = plant.GetMyMutableContextFromRoot(context)
+    plant_context = plant.GetMyMutableContextFromRoot(
+        simulator.get_mutable_context())
     plant.SetPositions(plant_context, station.arm,
                        throw.start_q(scenario.throw))
     plant.SetPositions(plant_context, station.hand, robot.HAND_OPEN)
@@ -536,10 +668,10 @@ def initialize(station: Station, scenario: Scenario) -> Simulator:
     return simulator
 
 
-def continue_with(simulator: Simulator, station: Station, other: Station,
-                  scenario: Scenario) -> Simulator:
-    """A simulator of `other`, a station built like `station` but for
-    `scenario` (another plant time step, say), at `simulator`'s time and
+def continue_with(simulator: Simulator, episode: EpisodeDiagram,
+                  other: EpisodeDiagram, scenario: Scenario) -> Simulator:
+    """A simulator of `other`, an episode diagram built like `episode` but
+    for `scenario` (another plant time step, say), at `simulator`'s time and
     state: the plant's, the controller's and every system's of ours.
     SceneGraph's state is not copied (it holds the other diagram's geometry
     ids; its poses follow the plant's state). Continuing with `other` built
@@ -549,10 +681,11 @@ def continue_with(simulator: Simulator, station: Station, other: Station,
     ApplySimulatorConfig(scenario.simulator_config, target)
     context = target.get_mutable_context()
     context.SetTime(source.get_time())
-    for a, b in zip(station.diagram.GetSystems(), other.diagram.GetSystems()):
+    for a, b in zip(episode.diagram.GetSystems(), other.diagram.GetSystems(),
+                    strict=True):
         if type(a) is not type(b):
             raise ValueError(f"continue_with: {a.get_name()} and "
-                             f"{b.get_name()}: not stations built alike")
+                             f"{b.get_name()}: not diagrams built alike")
         if isinstance(a, SceneGraph):
             continue
         context_a = a.GetMyContextFromRoot(source)
@@ -568,3 +701,4 @@ def continue_with(simulator: Simulator, station: Station, other: Station,
     # The state is already the one to go on from: no initialization events.
     target.Initialize(InitializeParams(suppress_initialization_events=True))
     return target
+

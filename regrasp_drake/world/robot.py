@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from pydrake.common.yaml import yaml_dump_typed
 from pydrake.geometry import CollisionFilterDeclaration, GeometrySet, SceneGraph
 from pydrake.math import RigidTransform
 from pydrake.multibody.parsing import (
@@ -137,35 +138,79 @@ def add_puma_and_hand(
     )
 
 
-def make_arm_control_plant() -> MultibodyPlant:
-    """Returns a finalized continuous-time arm-only plant (nq = nv = 6) for
-    InverseDynamicsController.
+def directives_yaml(directives: list[ModelDirective] | None) -> str:
+    """The directives as YAML text (default: robot_directives()): Drake's
+    directive structs compare by identity, their text by value."""
+    if directives is None:
+        directives = robot_directives()
+    return yaml_dump_typed(ModelDirectives(directives=list(directives)))
 
-    The hand is one rigid body "hand" welded to link6 that carries the whole hand's
-    mass and composite inertia about the link6 frame, computed from the full hand
-    model at HAND_OPEN, so the controller compensates the hand's weight and inertia.
-    Reflected rotor inertias of the arm are included (parsed from the same SDF).
+
+def make_arm_control_plant(
+    directives: list[ModelDirective] | None = None,
+) -> MultibodyPlant:
+    """Returns a finalized continuous-time arm-only plant (nq = nv = 6) for
+    InverseDynamicsController and the inverse kinematics, from the robot's
+    model directives (default: robot_directives()).
+
+    The arm is added and placed as the directives say; the hand is one rigid
+    body "hand", welded to the arm frame the directives weld the hand to,
+    that carries the whole hand's mass and composite inertia about that
+    frame, computed from the full hand model at HAND_OPEN, so the controller
+    compensates the hand's weight and inertia. Reflected rotor inertias of
+    the arm are included (parsed from the same SDF).
     """
+    if directives is None:
+        directives = robot_directives()
     full = MultibodyPlant(time_step=0.0)
-    robot = add_puma_and_hand(full)
+    robot = add_puma_and_hand(full, directives)
     full.Finalize()
     context = full.CreateDefaultContext()
     full.SetPositions(context, robot.hand, HAND_OPEN)
-    # M_HL6_L6: the hand's spatial inertia about link6's origin, expressed in link6.
-    M_HL6_L6 = full.CalcSpatialInertia(
-        context,
-        full.GetFrameByName("link6", robot.arm),
-        full.GetBodyIndices(robot.hand),
-    )
+    # The arm's frame F that carries the hand (link6 for the shipped robot).
+    hand_prefix = f"{HAND_MODEL_NAME}::"
+    arm_prefix = f"{ARM_MODEL_NAME}::"
+    mounts = [d.add_weld.parent for d in directives
+              if d.add_weld and d.add_weld.child.startswith(hand_prefix)]
+    if len(mounts) != 1 or not mounts[0].startswith(arm_prefix):
+        raise ValueError(f"model directives: the hand is welded to {mounts}, "
+                         f"expected one frame of the arm ({arm_prefix}...)")
+    mount_frame = full.GetFrameByName(mounts[0][len(arm_prefix):], robot.arm)
+    # M_HF_F: the hand's spatial inertia about F's origin, expressed in F.
+    M_HF_F = full.CalcSpatialInertia(
+        context, mount_frame, full.GetBodyIndices(robot.hand))
 
+    # The same directives without the hand and its weld.
+    arm_only = [d for d in directives
+                if not (d.add_model and d.add_model.name == HAND_MODEL_NAME)
+                and not (d.add_weld
+                         and d.add_weld.child.startswith(hand_prefix))]
     plant = MultibodyPlant(time_step=0.0)
-    arm = add_puma(plant)
-    hand_body = plant.AddRigidBody("hand", arm, M_HL6_L6)
+    ProcessModelDirectives(ModelDirectives(directives=arm_only), plant,
+                           _parser(plant))
+    arm = plant.GetModelInstanceByName(ARM_MODEL_NAME)
+    hand_body = plant.AddRigidBody("hand", arm, M_HF_F)
     plant.WeldFrames(
-        plant.GetFrameByName("link6", arm), hand_body.body_frame(), RigidTransform()
-    )
+        plant.GetFrameByName(mount_frame.name(), arm), hand_body.body_frame(),
+        RigidTransform())
     plant.Finalize()
     return plant
+
+
+# Arm control plants by their directives' YAML text.
+_ARM_CONTROL_PLANTS: dict[str, MultibodyPlant] = {}
+
+
+def arm_control_plant(
+    directives: list[ModelDirective] | None = None,
+) -> MultibodyPlant:
+    """make_arm_control_plant(directives), built once per directives and
+    shared (a station's controller and the inverse kinematics only read
+    it)."""
+    key = directives_yaml(directives)
+    if key not in _ARM_CONTROL_PLANTS:
+        _ARM_CONTROL_PLANTS[key] = make_arm_control_plant(directives)
+    return _ARM_CONTROL_PLANTS[key]
 
 
 def exclude_robot_self_collisions(

@@ -24,7 +24,7 @@ from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.scenario import load_scenario
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world.objects import resolve_object
-from regrasp_drake.station.station import build_station, initialize
+from regrasp_drake.station.station import build_episode_diagram, initialize
 from regrasp_drake.station.episode import (read_outcome, read_ending,
                                            release_time, advance_to_outcome)
 
@@ -55,12 +55,13 @@ if a.offsets == 'all':
 else:
     offs = [tuple(int(v) for v in s.split(',')) for s in a.offsets.split(';')]
 t0 = time.time()
-st = build_station(scenario, obj, ik=ik, X_WG=X_WG, catch_parameters=(a.hc, a.hd))
+st = build_episode_diagram(scenario, obj, ik=ik, X_WG=X_WG,
+                           catch_parameters=(a.hc, a.hd))
 sim = initialize(st, scenario)
 tr = release_time(scenario)
 sim.AdvanceTo(tr)
 saved = sim.get_context().Clone()
-grasp = st.diagram.GetSubsystemByName('X_WG')
+grasp = st.controller.grasp_pose
 n = 0
 out = []
 for dx, dy in offs:
