@@ -8,8 +8,9 @@ object then falls at g. The fastest the palm can get there is bang-bang: it
 accelerates downward at A, then brakes at A to rest. Relative to the object
 it gains (A - g) t1²/2 + (A - g) t1 t2 - (A + g) t2²/2, with t2 = t1 - V/A:
 this grows without bound only if A > 2g; below 2g it peaks, the higher the
-faster the launch (the palm then had longer to fall ahead). This script prints, for launch
-speeds V and palm accelerations A, the earliest moment the palm can wait
+faster the launch (the palm then had longer to fall ahead). This script
+prints, for launch speeds V and palm accelerations A, the earliest moment
+the palm can wait
 0.40 m under the object, where it then is, and the catch moment, spin
 (half a turn by then) and impact speed that such a toss would need.
 
