@@ -201,5 +201,59 @@ class RestPoseTest(unittest.TestCase):
         self.assertLess(largest, 0.05)
 
 
+class CoordinatedPalmTest(unittest.TestCase):
+    """The coordinated palm (throw.toss.coordinated): gravity and the palm's
+    acceleration press along its normal through the lift, its sideways
+    motion is at rest again when it brakes, and table1-row4, which tipped
+    on its box head in the lift (2.1 rad/s relative to the palm), stays
+    put."""
+
+    def test_effective_gravity_along_the_normal(self):
+        toss = load_scenario(STUDY).throw.toss
+        self.assertTrue(toss.coordinated)
+        design = TossDesign.of(toss)
+        self.assertGreater(design.forward_tilt, 1.0)
+        t, y, v_y = design.sideways()
+        self.assertLess(abs(v_y[-1]), 1e-6)
+        ik = ArmIk()
+        X_WP0 = ik.palm_pose(np.array(design.start_q))
+        h = 1e-4
+        for time_s in np.linspace(0.05, design.lift_s - 0.05, 9):
+            # The roll axis's point (where an object's centre of mass
+            # about is): its acceleration and gravity, along the normal.
+            p = [palm_pose_at(design, X_WP0, time_s + k * h)
+                 @ np.array([0.0, 0.0, ROLL_AXIS_HEIGHT_M]) for k in (-1, 0, 1)]
+            a = (p[0] - 2 * p[1] + p[2]) / h**2
+            pressed = a + [0.0, 0.0, 9.81]
+            normal = palm_pose_at(design, X_WP0, time_s).rotation().col(2)
+            angle = np.arccos(np.dot(pressed, normal) / np.linalg.norm(pressed))
+            self.assertLess(angle, 0.005, time_s)
+
+    def test_a_narrow_based_object_does_not_tip(self):
+        obj = load_catalogue()["table1-row4"]
+        ik = ArmIk()
+        largest = {}
+        for coordinated in (False, True):
+            text = "{throw: {toss: {coordinated: %s}}}" % str(coordinated).lower()
+            scenario = with_time_step(load_scenario(STUDY, text=text), 0.001)
+            episode = build_episode_diagram(scenario, obj, ik=ik, X_WG=None)
+            simulator = initialize(episode, scenario)
+            plant = episode.station.plant
+            palm = plant.GetBodyByName("palm", episode.station.hand)
+            end = scenario.throw.settle_s + throw.release_s(scenario.throw)
+            largest[coordinated] = 0.0
+            for t in np.arange(0.01, end + 1e-9, 0.005):
+                simulator.AdvanceTo(t)
+                context = plant.GetMyContextFromRoot(simulator.get_context())
+                w = (plant.EvalBodySpatialVelocityInWorld(
+                         context, episode.station.object_body).rotational()
+                     - plant.EvalBodySpatialVelocityInWorld(
+                         context, palm).rotational())
+                largest[coordinated] = max(largest[coordinated],
+                                           np.linalg.norm(w))
+        self.assertGreater(largest[False], 1.0)
+        self.assertLess(largest[True], 0.05)
+
+
 if __name__ == "__main__":
     unittest.main()

@@ -35,6 +35,19 @@ the object still pressed on the palm, friction at its base would tip it
 forward like a block on a braking cart (the spin grew from 4.0 to 5.5
 rad/s).
 
+The coordinated palm (throw.toss.coordinated): while the palm is tilted by
+φ, the object is pressed onto it by gravity and the lift's acceleration,
+straight down, and an object resting on a narrow base (a box head, a
+flange) tips over its edge once tan φ passes its base's half-width over its
+height (table1-row4 at about τ = 0.44, the palm 28° back). The coordinated
+palm also accelerates along its start pose's y by a_y = -(g + a_z) tan φ,
+so that gravity and its acceleration together press along its normal at
+every tilt; the roll gains the term C τ³(1 - τ)³ (forward first, every end
+condition kept), C chosen so that the sideways velocity is 0 again when
+the palm brakes (about 13 for the default toss: forward 10°, back 16°,
+sideways 76 mm). The object then leaves with the same velocity and spin as
+without it.
+
 The arm follows the palm's pose by inverse kinematics every `IK_PERIOD_S`,
 joined by a C2 cubic spline (`toss_trajectory`).
 """
@@ -90,11 +103,15 @@ def _brake(u, v0, a, T_r):
             max(v2 - a * T_r * (tau - S), 0.0) if tau < 1.0 else 0.0)
 
 
-def _roll_profile(tau):
-    """p(τ) and p'(τ) of the lift's roll (module docstring)."""
+def _roll_profile(tau, forward: float = 0.0):
+    """p(τ) and p'(τ) of the lift's roll (module docstring), plus
+    `forward` · τ³(1 - τ)³, which tilts the palm forward first and keeps
+    every end condition (the coordinated palm, TossDesign.coordinated)."""
     tau = min(max(tau, 0.0), 1.0)
-    return (tau**3 * (-4.0 + 7.0 * tau - 3.0 * tau**2),
-            tau**2 * (-12.0 + 28.0 * tau - 15.0 * tau**2))
+    bump = tau**3 * (1.0 - tau)**3
+    dbump = 3.0 * tau**2 * (1.0 - tau)**2 * (1.0 - 2.0 * tau)
+    return (tau**3 * (-4.0 + 7.0 * tau - 3.0 * tau**2) + forward * bump,
+            tau**2 * (-12.0 + 28.0 * tau - 15.0 * tau**2) + forward * dbump)
 
 
 @dc.dataclass(frozen=True)
@@ -110,6 +127,9 @@ class TossDesign:
     spin_stop_s: float      # T_s, [s]
     spin_hold_s: float      # T_h, [s]
     brake_delay_s: float = 0.0  # d, [s]
+    # The coordinated palm: while tilted by φ in the lift it accelerates
+    # along its start pose's y by -(g + a_z) tan φ (module docstring).
+    coordinated: bool = False
 
     @staticmethod
     def of(toss, brake_delay_s: float = 0.0) -> "TossDesign":
@@ -123,7 +143,8 @@ class TossDesign:
             spin=float(toss.spin_rad_per_s),
             spin_stop_s=float(toss.spin_stop_s),
             spin_hold_s=float(toss.spin_hold_s),
-            brake_delay_s=float(max(brake_delay_s, -toss.lift_s / 2)))
+            brake_delay_s=float(max(brake_delay_s, -toss.lift_s / 2)),
+            coordinated=bool(toss.coordinated))
 
     @property
     def brake_start_s(self) -> float:
@@ -156,11 +177,11 @@ class TossDesign:
         t0 = self.brake_start_s
         if t < min(T_l, t0):
             s, S = _smoothstep(t / T_l)
-            p, dp = _roll_profile(t / T_l)
+            p, dp = _roll_profile(t / T_l, self.forward_tilt)
             return V * T_l * S, V * s, W * T_l * p, W * dp
         # At the end of the lift (or of a shortened one).
         s_l, S_l = _smoothstep(min(T_l, t0) / T_l)
-        p_l, dp_l = _roll_profile(min(T_l, t0) / T_l)
+        p_l, dp_l = _roll_profile(min(T_l, t0) / T_l, self.forward_tilt)
         z0, phi0 = V * T_l * S_l, W * T_l * p_l
         v0, w0 = V * s_l, W * dp_l
         if t < t0:  # cruising
@@ -176,6 +197,77 @@ class TossDesign:
         return z0 + dz, v, phi, w0 * (1.0 - s_s)
 
 
+    @property
+    def forward_tilt(self) -> float:
+        """The roll's forward-first coefficient (_roll_profile): 0, or for
+        the coordinated palm the one whose sideways motion has come back to
+        rest when the undelayed lift ends."""
+        if not self.coordinated:
+            return 0.0
+        if "_forward_tilt" in self.__dict__:  # a trial of the bisection
+            return self.__dict__["_forward_tilt"]
+        return _forward_tilt(dc.replace(self, brake_delay_s=0.0))
+
+    def sideways(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(t, y, v_y) of the coordinated palm's sideways motion on a
+        _SIDEWAYS_DT_S grid from 0 to the brake's start, [s, m, m/s]: a_y
+        = -(g + a_z) tan φ while it lifts (and cruises), so that gravity
+        and the palm's acceleration press the object along the palm's
+        normal however far it tilts."""
+        t = np.arange(0.0, self.brake_start_s + _SIDEWAYS_DT_S / 2,
+                      _SIDEWAYS_DT_S)
+        motion = np.array([self.palm_motion(float(x)) for x in t])
+        a_z = np.gradient(motion[:, 1], t)
+        a_y = -(STANDARD_GRAVITY + a_z) * np.tan(motion[:, 2])
+        v_y = np.concatenate(
+            [[0.0], np.cumsum((a_y[1:] + a_y[:-1]) / 2 * _SIDEWAYS_DT_S)])
+        y = np.concatenate(
+            [[0.0], np.cumsum((v_y[1:] + v_y[:-1]) / 2 * _SIDEWAYS_DT_S)])
+        return t, y, v_y
+
+    def sideways_offset(self, t: float) -> float:
+        """The coordinated palm's sideways offset at throw time t, [m]
+        (0 if not coordinated); after the brake starts it goes on at the
+        speed it had then (about 0: forward_tilt)."""
+        if not self.coordinated:
+            return 0.0
+        times, y, v_y = _sideways_table(self)
+        if t <= times[-1]:
+            return float(np.interp(t, times, y))
+        return float(y[-1] + v_y[-1] * (t - times[-1]))
+
+
+@functools.lru_cache(maxsize=64)
+def _forward_tilt(design: TossDesign) -> float:
+    """Bisection of TossDesign.forward_tilt: the sideways velocity when the
+    palm brakes falls as the coefficient grows."""
+    lo, hi = 0.0, _FORWARD_TILT_MAX
+    for _ in range(40):
+        mid = (lo + hi) / 2
+        trial = dc.replace(design)
+        trial.__dict__["_forward_tilt"] = mid
+        if trial.sideways()[2][-1] > 0.0:
+            lo = mid
+        else:
+            hi = mid
+    return (lo + hi) / 2
+
+
+@functools.lru_cache(maxsize=64)
+def _sideways_table(design: TossDesign):
+    return design.sideways()
+
+
+# The sideways motion's integration step, [s].
+_SIDEWAYS_DT_S = 1e-4
+# The largest forward-first coefficient tried, [-] (the shipped toss needs
+# about 13: the palm tilts forward 10°, then back 16°).
+_FORWARD_TILT_MAX = 40.0
+# g of the coordinated palm's sideways acceleration, [m/s²]: the scenario's
+# default gravity_m_per_s2.
+STANDARD_GRAVITY = 9.81
+
+
 def palm_pose_at(design: TossDesign, X_WP0: RigidTransform,
                  t: float) -> RigidTransform:
     """The palm's pose at throw time t, from its start pose X_WP0."""
@@ -186,7 +278,8 @@ def palm_pose_at(design: TossDesign, X_WP0: RigidTransform,
     p_P0P = p_PA - R_roll @ p_PA
     return RigidTransform(
         X_WP0.rotation() @ R_roll,
-        X_WP0.translation() + X_WP0.rotation() @ p_P0P + [0.0, 0.0, z])
+        X_WP0.translation() + X_WP0.rotation() @ (
+            p_P0P + [0.0, design.sideways_offset(t), 0.0]) + [0.0, 0.0, z])
 
 
 @functools.lru_cache(maxsize=16)

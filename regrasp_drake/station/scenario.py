@@ -132,6 +132,13 @@ class PalmTossConfig:
     # Over this time the move stops the roll, [s] (for the toss's own
     # trajectory, which runs on to rest).
     spin_stop_s: float = 0.15
+    # The coordinated palm (station/palm_toss.py): while tilted by φ in the
+    # lift, the palm also accelerates sideways by -(g + a_z) tan φ, as a
+    # waiter carries a tray, so that no tilt tips a narrow-based object; its
+    # roll first tilts forward so that the sideways motion is back at rest
+    # when the palm brakes. Without it, objects resting on a narrow base
+    # tipped in the lift (studies/palm_toss/FINDINGS.md).
+    coordinated: bool = False
 
 
 @dc.dataclass
