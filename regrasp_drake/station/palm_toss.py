@@ -45,7 +45,7 @@ so that gravity and its acceleration together press along its normal at
 every tilt; the roll gains the term C τ³(1 - τ)³ (forward first, every end
 condition kept), C chosen so that the sideways velocity is 0 again when
 the palm brakes (about 13 for the default toss: forward 10°, back 16°,
-sideways 76 mm). The object then leaves with the same velocity and spin as
+sideways 82 mm). The object then leaves with the same velocity and spin as
 without it.
 
 The arm follows the palm's pose by inverse kinematics every `IK_PERIOD_S`,
@@ -128,13 +128,17 @@ class TossDesign:
     spin_hold_s: float      # T_h, [s]
     brake_delay_s: float = 0.0  # d, [s]
     # The coordinated palm: while tilted by φ in the lift it accelerates
-    # along its start pose's y by -(g + a_z) tan φ (module docstring).
+    # along its start pose's y by -(g + a_z) tan φ (module docstring) ...
     coordinated: bool = False
+    # ... and its roll gains forward_tilt · τ³(1 - τ)³ (_roll_profile;
+    # TossDesign.of solves it, _forward_tilt), [-].
+    forward_tilt: float = 0.0
 
     @staticmethod
     def of(toss, brake_delay_s: float = 0.0) -> "TossDesign":
-        """The design of a scenario's PalmTossConfig (throw.toss)."""
-        return TossDesign(
+        """The design of a scenario's PalmTossConfig (throw.toss); a
+        coordinated palm's forward_tilt is the one for the undelayed lift."""
+        design = TossDesign(
             start_q=tuple(float(q) for q in toss.start_q_rad),
             launch_speed=float(toss.launch_speed_m_per_s),
             lift_s=float(toss.lift_s),
@@ -143,8 +147,11 @@ class TossDesign:
             spin=float(toss.spin_rad_per_s),
             spin_stop_s=float(toss.spin_stop_s),
             spin_hold_s=float(toss.spin_hold_s),
-            brake_delay_s=float(max(brake_delay_s, -toss.lift_s / 2)),
             coordinated=bool(toss.coordinated))
+        if design.coordinated:
+            design = dc.replace(design, forward_tilt=_forward_tilt(design))
+        return dc.replace(
+            design, brake_delay_s=float(max(brake_delay_s, -toss.lift_s / 2)))
 
     @property
     def brake_start_s(self) -> float:
@@ -197,17 +204,6 @@ class TossDesign:
         return z0 + dz, v, phi, w0 * (1.0 - s_s)
 
 
-    @property
-    def forward_tilt(self) -> float:
-        """The roll's forward-first coefficient (_roll_profile): 0, or for
-        the coordinated palm the one whose sideways motion has come back to
-        rest when the undelayed lift ends."""
-        if not self.coordinated:
-            return 0.0
-        if "_forward_tilt" in self.__dict__:  # a trial of the bisection
-            return self.__dict__["_forward_tilt"]
-        return _forward_tilt(dc.replace(self, brake_delay_s=0.0))
-
     def sideways(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(t, y, v_y) of the coordinated palm's sideways motion on a
         _SIDEWAYS_DT_S grid from 0 to the brake's start, [s, m, m/s]: a_y
@@ -239,14 +235,13 @@ class TossDesign:
 
 @functools.lru_cache(maxsize=64)
 def _forward_tilt(design: TossDesign) -> float:
-    """Bisection of TossDesign.forward_tilt: the sideways velocity when the
-    palm brakes falls as the coefficient grows."""
+    """The forward-first coefficient whose sideways motion has come back
+    to rest when `design`'s lift ends (bisection: the sideways velocity
+    then falls as the coefficient grows)."""
     lo, hi = 0.0, _FORWARD_TILT_MAX
     for _ in range(40):
         mid = (lo + hi) / 2
-        trial = dc.replace(design)
-        trial.__dict__["_forward_tilt"] = mid
-        if trial.sideways()[2][-1] > 0.0:
+        if dc.replace(design, forward_tilt=mid).sideways()[2][-1] > 0.0:
             lo = mid
         else:
             hi = mid
