@@ -9,12 +9,12 @@ from regrasp_drake.world.objects import resolve_object
 
 class Row2Fixture:
     """Mixin for a unittest.TestCase: setUpClass gives `scenario` (the
-    shipped defaults), `obj` (table1-row2) and `ik`, with one torch
+    shipped scenario at a 1 ms step: "Fast"), `obj` (table1-row2) and `ik`, with one torch
     thread (the tests fork)."""
 
     @classmethod
     def setUpClass(cls):
         torch.set_num_threads(1)
-        cls.scenario = load_scenario()
+        cls.scenario = load_scenario(name="Fast")
         cls.obj = resolve_object(name="table1-row2")
         cls.ik = ArmIk()

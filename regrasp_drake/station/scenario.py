@@ -68,11 +68,11 @@ class ContactConfig:
     # bumper's thin box on it) or "pads" (36 sphere pads over a lowered box,
     # the 8 under the bumper 1 mm prouder; sdf/hand.sdf holds both and the
     # station keeps one).
-    palm: str = "box"
+    palm: str = "pads"
     # The collision geometry of the objects' box pieces: "exact" boxes or
     # "rounded" (Drake's inset box with 8 corner spheres,
     # world/objects.py Piece.collision_shapes).
-    object_boxes: str = "exact"
+    object_boxes: str = "rounded"
 
 
 @dc.dataclass
@@ -138,7 +138,7 @@ class PalmTossConfig:
     # roll first tilts forward so that the sideways motion is back at rest
     # when the palm brakes. Without it, objects resting on a narrow base
     # tipped in the lift (studies/palm_toss/FINDINGS.md).
-    coordinated: bool = False
+    coordinated: bool = True
 
 
 @dc.dataclass
@@ -146,7 +146,7 @@ class ThrowConfig:
     # The throw: "fingers" (the fingers hold the object through the arm's
     # swing along the knots below and open at release_time_s) or
     # "palm_toss" (the palm tosses it, `toss` below).
-    kind: str = "fingers"
+    kind: str = "palm_toss"
     # Time the object is left to settle in the closed hand before the swing, [s].
     settle_s: float = 0.3
     # Arm joint knots of the throw (rad), at times `knot_times_s` (s) counted
@@ -192,7 +192,7 @@ class SensorConfig:
 class CatchConfig:
     # Height of the object's origin at the catch point, [m]: the hand waits
     # under the watched flight where the object falls through this height.
-    catch_height_m: float = 0.78
+    catch_height_m: float = 0.45
     # Catch points are looked for within this distance of catch_height_m, the
     # nearest first, [m].
     height_band_m: float = 0.3
@@ -221,7 +221,7 @@ class CatchConfig:
         default_factory=lambda: [0.0, 0.4295, -1.6445, 0.0, 0.4274, 3.1416])
     # Duration of the arm's move from the end of the throw to the grasp
     # position, [s].
-    move_to_grasp_s: float = 0.35
+    move_to_grasp_s: float = 0.45
     # A grasp pose is used only if the move there needs at most this fraction
     # of every arm servo's torque limit (inverse dynamics of the move); the
     # rest is left to the feedback that corrects tracking errors, [-].
@@ -249,7 +249,7 @@ class CatchConfig:
     # it takes over from the lowering's moving state (position, velocity,
     # acceleration), so the hand goes on down as the object lands and turns
     # back smoothly within return_s, a cushion.
-    return_from_motion: bool = False
+    return_from_motion: bool = True
     # Where (h_catch, h_down) come from: "fixed" (the two values below) or
     # "mlp" (the network in `weights`).
     parameter_source: str = "fixed"
@@ -287,7 +287,7 @@ class MonitorConfig:
     # false (the default until the maps, data set and tables are rebuilt,
     # so that the shipped ones reproduce): the paper's two sensors alone.
     # The palm toss's scenarios (studies/palm_toss) set it true.
-    read_fingers: bool = False
+    read_fingers: bool = True
     finger_stall_rad: float = 0.01
     finger_rest_rad_per_s: float = 0.5
     finger_window_s: float = 0.15
@@ -303,7 +303,7 @@ class MonitorConfig:
 
 
 def _plant_config() -> MultibodyPlantConfig:
-    return MultibodyPlantConfig(time_step=0.001, contact_model="point",
+    return MultibodyPlantConfig(time_step=0.00025, contact_model="point",
                                 discrete_contact_approximation="similar")
 
 
