@@ -436,7 +436,8 @@ def _cmd_train_flight(args) -> int:
     torch.set_num_threads(1)
     scenario = load_scenario(args.scenario)
     data = args.data or MODELS_DIR / "dataset"
-    held_out = [o for o in load_catalogue().values() if o.set != "train"]
+    held_out = [o for o in load_catalogue().values()
+                if o.set in ("test", "holdout")]
     report = train_from_dataset(data, scenario, args.out, ik=ArmIk(scenario.directives),
                                 eval_objects=held_out, progress=sys.stderr)
     print(json.dumps(report, indent=1))
@@ -549,9 +550,9 @@ def make_parser() -> argparse.ArgumentParser:
                    metavar="N", help="parallel objects (default: all cores)")
     p.add_argument("--backend", choices=("process", "ray"), default="process",
                    help="local processes, or Ray (RAY_ADDRESS, else local)")
-    p.add_argument("--catch-points", type=int, default=4, metavar="K",
+    p.add_argument("--catch-points", type=int, default=1, metavar="K",
                    help="catch points per object, each with its own map and "
-                        "label (default 4)")
+                        "label (default 1, as the shipped data set)")
     p.add_argument("--out", type=Path, metavar="DIR",
                    default=_InOutDir("dataset"),
                    help="output directory; an existing data set is resumed "

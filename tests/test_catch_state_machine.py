@@ -29,9 +29,11 @@ class CatchFieldsTest(unittest.TestCase):
                 self.assertIn(expected, str(e.exception))
                 self.assertEqual(len(str(e.exception).splitlines()), 1)
 
-    def test_defaults_keep_the_paper_catch(self):
+    def test_default_cushions_and_the_finger_throw_keeps_the_papers(self):
         s = validate(Scenario())
-        self.assertFalse(s.catch.return_from_motion)
+        self.assertTrue(s.catch.return_from_motion)
+        self.assertFalse(
+            load_scenario(name="FingerThrow").catch.return_from_motion)
         self.assertIsNone(s.catch.preshape_distal_closure)
         np.testing.assert_array_equal(csm.preshape_closures(s.catch),
                                       np.full(10, s.catch.preshape_closure))

@@ -19,7 +19,6 @@ from regrasp_drake.world import robot
 from regrasp_drake.world.objects import load_catalogue
 from tests.refusals import RefusalAssertions, load_script
 
-STUDY = Path(__file__).parents[1] / "studies" / "palm_toss" / "palm_toss.yaml"
 CENIC = ("{plant_config: {time_step: 0}, simulator_config: "
          "{integration_scheme: cenic, accuracy: 1e-3}}")
 
@@ -27,12 +26,12 @@ CENIC = ("{plant_config: {time_step: 0}, simulator_config: "
 class CenicScenarioTest(unittest.TestCase):
     def test_default_is_the_discrete_plant_and_drakes_integrator(self):
         s = load_scenario()
-        self.assertEqual(s.plant_config.time_step, 0.001)
+        self.assertEqual(s.plant_config.time_step, 0.00025)
         self.assertEqual(s.simulator_config.integration_scheme, "runge_kutta3")
         self.assertEqual(s, Scenario())
 
     def test_cenic_loads(self):
-        s = load_scenario(STUDY, text=CENIC)
+        s = load_scenario(name="Fast", text=CENIC)
         self.assertEqual(s.plant_config.time_step, 0.0)
         self.assertEqual(s.simulator_config.accuracy, 1e-3)
 
@@ -64,7 +63,7 @@ class CenicTrackingTest(unittest.TestCase):
 
     @classmethod
     def setUpClass(cls):
-        cls.scenario = load_scenario(STUDY, text=CENIC)
+        cls.scenario = load_scenario(name="Fast", text=CENIC)
         obj = load_catalogue()["table1-row2"]
         episode = build_episode_diagram(cls.scenario, obj, ik=ArmIk(),
                                         X_WG=None)

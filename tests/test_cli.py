@@ -151,19 +151,18 @@ class TestCli(unittest.TestCase):
                          "expected an integer >= 0")
 
     def test_object_the_hand_cannot_hold_refused_with_the_reason(self):
-        # A 0.5 m wide, 2 kg disc: within an object's bounds, but its watched
-        # flight never comes down to the catch height.
+        # A 0.5 m wide, 2 kg disc: within an object's bounds, but it rolls
+        # off the open palm it is laid on: refused before any throw.
         with tempfile.TemporaryDirectory() as d:
             path = _object_file(
                 d, "shape: cylinder, radius: 0.25, length: 0.05, axis: y", "big")
             result = _run("learn", "--object-file", str(path), "--library",
                           str(Path(d) / "library.yaml"))
         self.assertEqual(result.returncode, 2)
-        # The watching throw's progress line, then the error.
         lines = result.stderr.strip().splitlines()
-        self.assertEqual(len(lines), 2, result.stderr)
-        self.assertIn("throw 1 (watch): landed", lines[0])
-        self.assertIn("learn: error: object big: no catch point", lines[1])
+        self.assertEqual(len(lines), 1, result.stderr)
+        self.assertIn("learn: error: object big: does not rest on the open "
+                      "palm", lines[0])
 
     def test_object_beyond_the_bounds_refused_before_any_throw(self):
         # A 0.8 m long, 20 kg cylinder: no PUMA 560 throws it.

@@ -103,19 +103,29 @@ class SensorVerdictTest(Row2Fixture, unittest.TestCase):
             (Outcome.DROPPED, DropReason.NOT_HELD))
 
 
-class MonitorAgainstContactsTest(Row2Fixture, unittest.TestCase):
-    """table1-row2's whole success map (150 cells, default scenario, two
-    workers): the monitor's verdict, caught or not, is the plant's contact
-    results' verdict (`held_by_contact`: palm, thumb and another finger
-    touching, at rest on the palm) in every cell. Under the paper's two
-    sensors alone 19 cells were held yet dropped (FINDINGS.md)."""
+class ContactVerdictTest(unittest.TestCase):
+    """held: the thumb and a finger facing it touch the object, which moves
+    with the palm; with the palm touching too it is a power grasp."""
 
-    @classmethod
-    def setUpClass(cls):
-        super().setUpClass()
-        # The monitor that reads the finger servos (not yet the default:
-        # the shipped maps and tables were made without it).
-        cls.scenario = load_scenario(text="{monitor: {read_fingers: true}}")
+    def test_held_and_grasp_kind(self):
+        from regrasp_drake.station.grasp_monitor import grasp_kind, held
+        pinch = ["index_distal", "thumb_distal"]
+        self.assertTrue(held(pinch, 0.001, 0.05))
+        self.assertEqual(grasp_kind(pinch), "fingertip")
+        self.assertEqual(grasp_kind(pinch + ["palm"]), "power")
+        self.assertFalse(held(pinch, 0.03, 0.05))      # slipping
+        self.assertFalse(held(pinch, 0.001, 0.6))      # turning
+        self.assertFalse(held(["palm", "thumb_distal"], 0.0, 0.0))  # no opposing
+        self.assertFalse(held(["palm", "index_distal"], 0.0, 0.0))  # no thumb
+
+
+class MonitorAgainstContactsTest(Row2Fixture, unittest.TestCase):
+    """table1-row2's whole success map (150 cells, the shipped scenario at
+    1 ms, two workers): the monitor's verdict, caught or not, is the plant's
+    contact results' verdict (`held_by_contact`: the thumb and another
+    finger touching, the object at rest relative to the palm) in every
+    cell. Under the paper's two sensors alone 19 cells of the finger
+    throw's map were held yet dropped (FINDINGS.md)."""
 
     def test_monitor_verdict_equals_contact_verdict(self):
         start = time.perf_counter()

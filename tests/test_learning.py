@@ -89,20 +89,22 @@ class TestLearningPhase(unittest.TestCase):
         cls.library = d / "library.yaml"
         constant_weights(d / "catches.pt", 0.28, -0.12)
         # learn, then apply, as a user runs them.
-        cls.learned = _cli("learn", "--object", OBJECT, "--weights",
-                           str(d / "catches.pt"), "--library", str(cls.library),
+        cls.learned = _cli("learn", "--object", OBJECT, "--scenario-name",
+                           "Fast", "--weights", str(d / "catches.pt"), "--library", str(cls.library),
                            "--json", str(d / "learn.json"), "--html",
                            str(d / "learn.html"), "--plot", str(d / "search.png"))
         cls.learn_json = (json.loads((d / "learn.json").read_text())
                           if cls.learned.returncode == 0 else None)
-        cls.applied = _cli("apply", "--object", OBJECT, "--library",
-                           str(cls.library), "--json", str(d / "apply.json"))
+        cls.applied = _cli("apply", "--object", OBJECT, "--scenario-name",
+                           "Fast", "--library", str(cls.library), "--json",
+                           str(d / "apply.json"))
         cls.apply_json = (json.loads((d / "apply.json").read_text())
                           if cls.applied.returncode == 0 else None)
         # A search that fails and is stopped by a cap on the throws.
         model, _ = load_weights(constant_weights(d / "misses.pt", 0.04, 0.0))
         cls.capped_library = d / "capped.yaml"
-        cls.capped = learn(load_scenario(), load_catalogue()[OBJECT], model,
+        cls.capped = learn(load_scenario(name="Fast"),
+                           load_catalogue()[OBJECT], model,
                            ik=ArmIk(), library_path=cls.capped_library,
                            max_throws=3, progress=None)
 
@@ -265,9 +267,10 @@ class TestRunReplay(unittest.TestCase):
 
 class NoCatchPointTest(unittest.TestCase):
     def test_watch_without_catch_point_counts_its_throw(self):
-        """holdout-scraper-d180's watched flight has no reachable catch
-        point: the learning phase stops, with the watching throw counted."""
-        scenario = load_scenario()
+        """holdout-scraper-d180's watched flight under the finger throw
+        (named scenario FingerThrow) has no reachable catch point: the
+        learning phase stops, with the watching throw counted."""
+        scenario = load_scenario(name="FingerThrow")
         model, _ = load_weights(MODELS_DIR / "catch_mlp.pt")
         with self.assertRaises(NoCatchPoint) as e:
             learn(scenario, load_catalogue()["holdout-scraper-d180"], model,
@@ -282,9 +285,10 @@ if __name__ == "__main__":
 
 
 class UnreachableLoweringTest(unittest.TestCase):
-    """adze-d300-3: the arm reaches its grasp pose but cannot lower the hand
-    more than 3 cm there; the stored success map
-    (models/dataset/cells/adze-d300-3.jsonl) has every cell of h_down
+    """adze-d300-3 under the finger throw (named scenario FingerThrow): the
+    arm reaches its grasp pose but cannot lower the hand more than 3 cm
+    there; its success map (tests/data/adze-d300-3_finger_throw.jsonl, from
+    the finger throw's data set, commit 3c418fe) has every cell of h_down
     -0.14 … -0.04 m failed with "lowered pose unreachable". The learning
     phase knows it from the plan and spends no throw on them: from the
     network's cell (6, 6) the wavefront took 81 catch throws, the start
@@ -293,11 +297,9 @@ class UnreachableLoweringTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         cls.rows = {tuple(r["cell"]): r for r in map(json.loads, (
-            MODELS_DIR / "dataset" / "cells" / "adze-d300-3.jsonl")
+            Path(__file__).parent / "data" / "adze-d300-3_finger_throw.jsonl")
             .read_text().splitlines())}
-        # The stored map was made with the paper's grasp monitor (palm
-        # sensors only): so are the throws compared with it.
-        cls.scenario = load_scenario(text="{monitor: {read_fingers: false}}")
+        cls.scenario = load_scenario(name="FingerThrow")
         cls.ik = ArmIk()
         cls.obj = load_catalogue()["adze-d300-3"]
 
@@ -345,7 +347,7 @@ class Table1ObjectsTest(unittest.TestCase):
     def test_rows_and_paper_figures(self):
         from regrasp_drake.learning.table1 import format_markdown, run_table1
         model, _ = load_weights(MODELS_DIR / "catch_mlp.pt")
-        rows = run_table1(load_scenario(), model, ik=ArmIk(),
+        rows = run_table1(load_scenario(name="Fast"), model, ik=ArmIk(),
                           objects=["table1-row5", "table1-row3"],
                           progress=None)
         self.assertEqual([r["row"] for r in rows], [5, 3])

@@ -25,7 +25,6 @@ from regrasp_drake.station.station import build_episode_diagram, initialize
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world.objects import load_catalogue
 
-STUDY = Path(__file__).parents[1] / "studies" / "palm_toss" / "palm_toss.yaml"
 
 
 class TossMotionTest(unittest.TestCase):
@@ -67,13 +66,17 @@ class TossMotionTest(unittest.TestCase):
             self.assertLess(np.linalg.norm(
                 X.translation() - X_want.translation()), 1e-3)
         # The roll turns about an axis ROLL_AXIS_HEIGHT_M above the palm:
-        # a point of it only rises.
+        # a point of it only rises, and moves sideways with the
+        # coordinated palm.
         p_PA = np.array([0.0, 0.0, ROLL_AXIS_HEIGHT_M])
         for t in (0.1, self.design.brake_start_s + 0.05):
             X = palm_pose_at(self.design, X_WP0, t)
+            sideways = X_WP0.rotation() @ [
+                0.0, self.design.sideways_offset(t), 0.0]
             np.testing.assert_allclose(
                 X @ p_PA - X_WP0 @ p_PA,
-                [0.0, 0.0, self.design.palm_motion(t)[0]], atol=1e-12)
+                sideways + [0.0, 0.0, self.design.palm_motion(t)[0]],
+                atol=1e-12)
 
 
 class TossScenarioTest(unittest.TestCase):
@@ -93,10 +96,10 @@ class TossScenarioTest(unittest.TestCase):
             validate(s)
 
     def test_timing_of_either_throw(self):
-        fingers = Scenario().throw
+        fingers = load_scenario(name="FingerThrow").throw
         self.assertEqual(throw.end_s(fingers), fingers.knot_times_s[-1])
         self.assertEqual(throw.release_s(fingers), fingers.release_time_s)
-        toss = load_scenario(STUDY).throw
+        toss = Scenario().throw
         d = TossDesign.of(toss.toss)
         self.assertEqual(throw.release_s(toss), d.lift_s)
         self.assertEqual(throw.end_s(toss), d.lift_s + d.spin_hold_s)
@@ -152,7 +155,7 @@ class WatchedTossTest(unittest.TestCase):
     spin, and the catch is planned where its axis is exactly horizontal."""
 
     def test_spin_and_plan(self):
-        scenario = load_scenario(STUDY)
+        scenario = load_scenario(name="Fast")
         ik = ArmIk()
         obj = load_catalogue()["can-d100-1"]
         watched = watch(scenario, obj, ik)
@@ -174,7 +177,7 @@ class RestPoseTest(unittest.TestCase):
     def test_at_rest_and_the_same_at_every_step(self):
         obj = load_catalogue()["can-d250-5"]
         ik = ArmIk()
-        scenario = with_time_step(load_scenario(STUDY), 0.001)
+        scenario = with_time_step(load_scenario(name="Fast"), 0.001)
         episode = build_episode_diagram(scenario, obj, ik=ik, X_WG=None)
         station = episode.station
         finer = build_episode_diagram(with_time_step(scenario, 0.00025), obj,
@@ -209,7 +212,7 @@ class CoordinatedPalmTest(unittest.TestCase):
     put."""
 
     def test_effective_gravity_along_the_normal(self):
-        toss = load_scenario(STUDY).throw.toss
+        toss = load_scenario(name="Fast").throw.toss
         self.assertTrue(toss.coordinated)
         design = TossDesign.of(toss)
         self.assertGreater(design.forward_tilt, 1.0)
@@ -235,7 +238,7 @@ class CoordinatedPalmTest(unittest.TestCase):
         largest = {}
         for coordinated in (False, True):
             text = "{throw: {toss: {coordinated: %s}}}" % str(coordinated).lower()
-            scenario = with_time_step(load_scenario(STUDY, text=text), 0.001)
+            scenario = with_time_step(load_scenario(name="Fast", text=text), 0.001)
             episode = build_episode_diagram(scenario, obj, ik=ik, X_WG=None)
             simulator = initialize(episode, scenario)
             plant = episode.station.plant

@@ -55,7 +55,7 @@ class TestScenario(unittest.TestCase):
                 "plant_config.discrete_contact_approximation",
             "plant_config:\n  contact_model: hydroelastic\n":
                 "plant_config.contact_model",
-            "sensors:\n  period_s: 0.0045\n": "sensors.period_s",
+            "sensors:\n  period_s: 0.00455\n": "sensors.period_s",
             "sensors:\n  approach_range_m: 0.2\n": "sensors.approach_range_m",
             "catch:\n  h_catch_m: 0.9\n": "catch.h_catch_m",
             "catch:\n  palm_across_com_fraction: 1.5\n":

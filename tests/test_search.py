@@ -500,8 +500,8 @@ class TestMapPriorLearningRun(unittest.TestCase):
             model, _ = load_weights(constant_weights(Path(d) / "w.pt",
                                                      0.04, 0.0))
         _, prior, prior_features = load_prior_maps(with_features=True)
-        r = learn(load_scenario(), load_catalogue()["table1-row2"], model,
-                  ik=ArmIk(), max_throws=3, progress=None, search="map-prior")
+        r = learn(load_scenario(name="Fast"), load_catalogue()["table1-row2"],
+                  model, ik=ArmIk(), max_throws=3, progress=None, search="map-prior")
         weights = feature_weights(r.features, prior_features)
         expected = list(itertools.islice(
             map_prior_order((0, 14), prior, weights=weights), 2))

@@ -54,16 +54,16 @@ def _free_flight(logs, scenario):
 
 
 def _setup(cls):
-    cls.scenario = load_scenario()
+    cls.scenario = load_scenario(name="Fast")
     cls.ik = ArmIk()
     cls.obj = load_catalogue()[OBJECT]
 
 
 @functools.cache
 def _watched():
-    """The default scenario's watching throw of OBJECT, simulated once for
-    the module."""
-    scenario = load_scenario()
+    """The Fast scenario's watching throw of OBJECT (the shipped one at a
+    1 ms step), simulated once for the module."""
+    scenario = load_scenario(name="Fast")
     return watch(scenario, load_catalogue()[OBJECT], ArmIk(scenario.directives))
 
 
@@ -96,17 +96,19 @@ class TestWatchedFlight(unittest.TestCase):
                 self.assertLess(abs(2 * coefficients[0]), 1e-3 * 9.81)
 
     def test_angular_momentum_about_com_conserved(self):
-        """Drake's discrete step is first order: H drifts by O(dt). We check
-        the drift is small at the scenario's step and shrinks in proportion
-        to the step (conservation in the limit)."""
+        """Drake's discrete step is first order: H drifts by O(dt) at most.
+        We check the drift is small at the scenario's step and shrinks at
+        least in proportion to the step (conservation in the limit; the
+        palm toss's object, spinning about one principal axis, drifts less
+        than that: 13 times less at a quarter of the step)."""
         drift = _momentum_drift(self.first.logs, self.obj, self.scenario)
         self.assertLess(drift, 5e-4)
         dt = self.scenario.plant_config.time_step
-        fine = load_scenario(text=f"{{plant_config: {{time_step: {dt / 4}}}}}")
+        fine = load_scenario(name="Fast",
+                             text=f"{{plant_config: {{time_step: {dt / 4}}}}}")
         fine_drift = _momentum_drift(watch(fine, self.obj, self.ik).logs,
                                      self.obj, fine)
         self.assertGreater(drift / fine_drift, 3.0)
-        self.assertLess(drift / fine_drift, 5.0)
 
     def test_flights_bit_identical(self):
         np.testing.assert_array_equal(self.first.logs.object_state,
@@ -263,7 +265,9 @@ class TestStationPorts(unittest.TestCase):
         state = self.diagram.GetOutputPort("object_state").Eval(context)
         np.testing.assert_array_equal(state, plant.GetPositionsAndVelocities(
             plant_context, self.station.object_body.model_instance()))
-        self.assertGreater(state[6], 0.3)  # held up, not on the ground
+        # Still lying on the palm where it was laid, not fallen off.
+        np.testing.assert_allclose(
+            state[4:7], self.station.X_WO_initial.translation(), atol=0.01)
         np.testing.assert_array_equal(
             self.station.Eval("object_state", context), state)
 

@@ -179,12 +179,15 @@ def _since(since: float, on: bool, t: float) -> float:
 
 
 # ---- the check: what the plant's contact results say is held ---------------
-# The object is held when, at the end of an episode, it touches the palm (its
-# box, bumper or pads), the thumb and at least one finger facing the thumb,
-# and moves with the palm: its origin slips slower than HELD_SLIP_M_PER_S and
-# it turns slower than HELD_SPIN_RAD_PER_S relative to the palm. (At the end
-# of the hold the hand is at rest; a falling or rolling object moves at
-# decimetres per second.)
+# The object is held when, at the end of an episode, it touches the thumb and
+# at least one finger facing the thumb, and moves with the palm: its origin
+# slips slower than HELD_SLIP_M_PER_S and it turns slower than
+# HELD_SPIN_RAD_PER_S relative to the palm. (At the end of the hold the hand
+# is at rest; a falling or rolling object moves at decimetres per second.)
+# Against the palm (its box, bumper or pads) too, it is a power grasp; off
+# it, a fingertip grasp, which holds it as well: on the palm toss the
+# fingers closing on an object that lands beside the palm's centre pinch it
+# above the palm (studies/grasp_monitor/FINDINGS.md).
 HELD_SLIP_M_PER_S = 0.02
 HELD_SPIN_RAD_PER_S = 0.5
 _THUMB = frozenset(FINGER_LINKS["thumb"])
@@ -199,10 +202,11 @@ def contact_verdict(plant, plant_context, object_body, palm_body) -> dict:
     Returns `touching`, the names of the bodies in contact with the object,
     sorted; `slip_m_per_s` and `spin_rad_per_s`, the speed of the object's
     origin and its angular speed relative to the palm body; and
-    `held_by_contact`, whether it is held: touching the palm, the thumb and
-    another finger, slip and spin below HELD_SLIP_M_PER_S and
-    HELD_SPIN_RAD_PER_S. Raises what the plant raises when the contact
-    results cannot be computed (after a failed contact solve)."""
+    `held_by_contact`, whether it is held: touching the thumb and another
+    finger, slip and spin below HELD_SLIP_M_PER_S and HELD_SPIN_RAD_PER_S
+    (`held`; `grasp_kind` tells a power grasp from a fingertip one).
+    Raises what the plant raises when the contact results cannot be
+    computed (after a failed contact solve)."""
     results = plant.get_contact_results_output_port().Eval(plant_context)
     me = object_body.index()
     touching = set()
@@ -222,8 +226,21 @@ def contact_verdict(plant, plant_context, object_body, palm_body) -> dict:
     v_rel = V_WO.translational() - V_WP.Shift(p_PO_W).translational()
     w_rel = V_WO.rotational() - V_WP.rotational()
     slip, spin = float(np.linalg.norm(v_rel)), float(np.linalg.norm(w_rel))
-    held = bool("palm" in touching and touching & _THUMB
-                and touching & _OPPOSING
-                and slip < HELD_SLIP_M_PER_S and spin < HELD_SPIN_RAD_PER_S)
-    return {"touching": sorted(touching), "held_by_contact": held,
+    is_held = held(touching, slip, spin)
+    return {"touching": sorted(touching), "held_by_contact": is_held,
             "slip_m_per_s": round(slip, 4), "spin_rad_per_s": round(spin, 4)}
+
+
+def held(touching, slip_m_per_s: float, spin_rad_per_s: float) -> bool:
+    """The contact verdict from the bodies touching the object and its slip
+    and spin relative to the palm (a map row's `touching`, `slip_m_per_s`,
+    `spin_rad_per_s` give it again)."""
+    touching = set(touching)
+    return bool(touching & _THUMB and touching & _OPPOSING
+                and slip_m_per_s < HELD_SLIP_M_PER_S
+                and spin_rad_per_s < HELD_SPIN_RAD_PER_S)
+
+
+def grasp_kind(touching) -> str:
+    """"power" when the palm touches the object, else "fingertip"."""
+    return "power" if "palm" in set(touching) else "fingertip"

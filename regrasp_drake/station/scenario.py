@@ -64,14 +64,15 @@ class ContactConfig:
     point_stiffness_N_per_m: float = 100000.0
     # Hunt-Crossley dissipation of the object's surfaces, [s/m].
     hunt_crossley_dissipation_s_per_m: float = 10.0
-    # The palm's collision geometry: "box" (a flat box with the tactile
-    # bumper's thin box on it) or "pads" (36 sphere pads over a lowered box,
-    # the 8 under the bumper 1 mm prouder; sdf/hand.sdf holds both and the
-    # station keeps one).
+    # The palm's collision geometry: "pads" (36 sphere pads over a lowered
+    # box, the 8 under the bumper 1 mm prouder: smooth point contact for the
+    # palm toss) or "box" (a flat box with the tactile bumper's thin box on
+    # it, the finger throw's); sdf/hand.sdf holds both and the station keeps
+    # one.
     palm: str = "pads"
-    # The collision geometry of the objects' box pieces: "exact" boxes or
-    # "rounded" (Drake's inset box with 8 corner spheres,
-    # world/objects.py Piece.collision_shapes).
+    # The collision geometry of the objects' box pieces: "rounded" (Drake's
+    # inset box with 8 corner spheres, world/objects.py
+    # Piece.collision_shapes) or "exact" boxes.
     object_boxes: str = "rounded"
 
 
@@ -143,9 +144,12 @@ class PalmTossConfig:
 
 @dc.dataclass
 class ThrowConfig:
-    # The throw: "fingers" (the fingers hold the object through the arm's
-    # swing along the knots below and open at release_time_s) or
-    # "palm_toss" (the palm tosses it, `toss` below).
+    # The throw: "palm_toss" (the open palm tosses it, `toss` below; no
+    # finger touches it) or "fingers" (the paper's: the fingers hold the
+    # object through the arm's swing along the knots below and open at
+    # release_time_s; its release is not converged in the time step,
+    # studies/palm_toss/FINDINGS.md). knot_times_s, knot_q_rad,
+    # release_time_s and hold_closure are the finger throw's alone.
     kind: str = "palm_toss"
     # Time the object is left to settle in the closed hand before the swing, [s].
     settle_s: float = 0.3
@@ -284,9 +288,7 @@ class MonitorConfig:
     # an object that settles in the hand move at a few tenths of a rad/s
     # for a while (Drake's Allegro example calls a finger stuck below 0.07
     # rad/s, which such settling resets; studies/grasp_monitor/FINDINGS.md).
-    # false (the default until the maps, data set and tables are rebuilt,
-    # so that the shipped ones reproduce): the paper's two sensors alone.
-    # The palm toss's scenarios (studies/palm_toss) set it true.
+    # false: the paper's two sensors alone.
     read_fingers: bool = True
     finger_stall_rad: float = 0.01
     finger_rest_rad_per_s: float = 0.5

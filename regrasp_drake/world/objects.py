@@ -28,9 +28,9 @@ Pieces (lengths in metres, all axis-aligned in O):
   - ``grasp`` (optional, default false): exactly one piece has it; it is a
     cylinder or a capsule with axis y centred at the origin.
 Pieces must not overlap (they may touch) and must form one connected body.
-Objects: ``name`` (unique), ``set`` (train|test|holdout), ``geometry`` (a key of the
-same file's ``geometries``), ``density`` (kg/m³, the object's mean density,
-the feature d_obj), ``h_cm`` and ``r_cm`` (m). Every key listed is required,
+Objects: ``name`` (unique), ``set`` (train|ablation|test|holdout),
+``geometry`` (a key of the same file's ``geometries``), ``density`` (kg/m³,
+the object's mean density, the feature d_obj), ``h_cm`` and ``r_cm`` (m). Every key listed is required,
 unknown keys are refused.
 
 Bounds (what a PUMA 560 with this hand can throw; anything else is refused):
@@ -111,7 +111,7 @@ DENSITY_RANGE = (MIN_BASE_DENSITY, MAX_BALLAST_DENSITY)  # kg/m³
 MASS_RANGE_KG = (0.001, 2.5)
 NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+-]{0,63}")
 
-SETS = ("train", "test", "holdout")
+SETS = ("train", "ablation", "test", "holdout")
 AXES = {"x": 0, "y": 1, "z": 2}
 _PIECE_KEYS = {
     "cylinder": ("radius", "length", "axis", "center"),
@@ -403,8 +403,8 @@ def add_object(
 
 
 def load_catalogue(path: Path | str = CATALOGUE_PATH) -> dict[str, ObjectSpec]:
-    """The objects of the catalogue by name, training objects, then test
-    objects, then held-out objects, each set in file order."""
+    """The objects of the catalogue by name, training objects, then the
+    ablation's, test and held-out objects, each set in file order."""
     specs = load_object_file(path)
     ordered = [s for group in SETS for s in specs if s.set == group]
     return {spec.name: spec for spec in ordered}
