@@ -2,10 +2,13 @@
 the catalogue (training, Table 1 and held-out sets), the watching throw at
 the scenario's step and at a finer one (default 4x finer), side by side.
 
-    .venv/bin/python studies/palm_toss/release_convergence.py
-        [--scenario studies/palm_toss/palm_toss.yaml] [--scenario-text YAML]
+    .venv/bin/python benchmarks/release_convergence.py
+        [--scenario F] [--scenario-name NAME] [--scenario-text YAML]
         [--fine-step-s S | --fine-scenario-text YAML]
-        [--objects NAME ...] [--workers 2] [--out out/palm_toss_release]
+        [--objects NAME ...] [--workers 1] [--out out/release_convergence]
+
+The scenario: by default the shipped one (0.25 ms; --scenario-name Fast for
+1 ms; studies/palm_toss/FINDINGS.md).
 
 --scenario-text overrides fields of the scenario for both settings;
 --fine-scenario-text makes the fine setting the scenario with these fields
@@ -31,6 +34,8 @@ resumes); the summary goes to OUT/summary.json.
 # (regrasp_drake/numerics.py), so that results match across x86-64 machines.
 import regrasp_drake  # noqa: F401, I001 (first, see above)
 import argparse
+import contextlib
+import importlib.util
 import json
 import sys
 from pathlib import Path
@@ -44,6 +49,12 @@ from regrasp_drake.station.episode import release_time
 from regrasp_drake.station.scenario import load_scenario, with_time_step
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world.objects import load_catalogue
+
+# --scenario and --scenario-name, shared by the benchmarks.
+_spec = importlib.util.spec_from_file_location(
+    "scenario_args", Path(__file__).with_name("scenario_args.py"))
+scenario_args = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(scenario_args)
 
 TARGETS = {"spin_rad_per_s": 0.05, "velocity_mm_per_s": 10.0,
            "catch_point_mm": 10.0, "catch_moment_ms": 4.0}
@@ -144,8 +155,7 @@ def summarize(rows: list[dict]) -> dict:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--scenario", type=Path,
-                        default=Path(__file__).parent / "palm_toss.yaml")
+    scenario_args.add(parser)
     parser.add_argument("--scenario-text", default=None,
                         help="YAML fields over the scenario's, both settings")
     parser.add_argument("--fine-step-s", type=float, default=None,
@@ -156,9 +166,15 @@ def main(argv=None) -> int:
     parser.add_argument("--objects", nargs="+", default=None)
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--out", type=Path,
-                        default=Path("out/palm_toss_release"))
+                        default=Path("out/release_convergence"))
     args = parser.parse_args(argv)
+    with contextlib.ExitStack() as stack:
+        return _run(args, stack)
+
+
+def _run(args, stack) -> int:
     try:
+        scenario_args.resolved(args, stack)
         if args.fine_step_s is not None and args.fine_scenario_text:
             raise InputError("--fine-step-s and --fine-scenario-text: "
                              "give one of them, not both")

@@ -19,7 +19,8 @@ from regrasp_drake.world import robot
 from regrasp_drake.world.objects import load_catalogue
 from tests.refusals import RefusalAssertions, load_script
 
-STUDY = Path(__file__).parents[1] / "studies" / "palm_toss" / "palm_toss.yaml"
+# The palm toss at 1 ms (the shipped scenario at a coarser step).
+FAST = "Fast"
 CENIC = ("{plant_config: {time_step: 0}, simulator_config: "
          "{integration_scheme: cenic, accuracy: 1e-3}}")
 
@@ -32,7 +33,7 @@ class CenicScenarioTest(unittest.TestCase):
         self.assertEqual(s, Scenario())
 
     def test_cenic_loads(self):
-        s = load_scenario(STUDY, text=CENIC)
+        s = load_scenario(name=FAST, text=CENIC)
         self.assertEqual(s.plant_config.time_step, 0.0)
         self.assertEqual(s.simulator_config.accuracy, 1e-3)
 
@@ -64,7 +65,7 @@ class CenicTrackingTest(unittest.TestCase):
 
     @classmethod
     def setUpClass(cls):
-        cls.scenario = load_scenario(STUDY, text=CENIC)
+        cls.scenario = load_scenario(name=FAST, text=CENIC)
         obj = load_catalogue()["table1-row2"]
         episode = build_episode_diagram(cls.scenario, obj, ik=ArmIk(),
                                         X_WG=None)
@@ -132,9 +133,9 @@ class CenicTrackingTest(unittest.TestCase):
 
 
 class ReleaseConvergenceOptionsTest(RefusalAssertions, unittest.TestCase):
-    """studies/palm_toss/release_convergence.py's two-scenario options."""
+    """benchmarks/release_convergence.py's two-scenario options."""
     main = staticmethod(
-        load_script("studies/palm_toss/release_convergence.py").main)
+        load_script("benchmarks/release_convergence.py").main)
 
     def test_bad_options_are_refused_before_any_work(self):
         with tempfile.TemporaryDirectory() as d:
@@ -146,6 +147,8 @@ class ReleaseConvergenceOptionsTest(RefusalAssertions, unittest.TestCase):
                                 "--fine-scenario-text",
                                 "{simulator_config: {accuracy: 2}}", *out],
                                "simulator_config.accuracy")
+            self.assertRefused(["--scenario-name", "Nope", *out],
+                               "--scenario-name: got 'Nope'")
             self.assertFalse((Path(d) / "rows.jsonl").exists())
 
 
