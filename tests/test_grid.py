@@ -169,12 +169,13 @@ class ResumeCheckTest(unittest.TestCase):
 
 
 class SuccessMapPlotTest(unittest.TestCase):
-    """`grid --plot`: the stored table1-row4 map (studies/failure_modes)
-    drawn by ending, with its label framed."""
+    """`grid --plot`: a stored map of the data set (hook-d300-4's, which
+    catches, drops and ends in the fingers) drawn by ending, with its label
+    framed."""
 
     def test_plot_written(self):
-        rows = read_rows(Path(__file__).parents[1] / "studies" / "failure_modes"
-                         / "failure_modes" / "table1-row4.jsonl")
+        rows = read_rows(Path(__file__).parents[1] / "models" / "dataset"
+                         / "cells" / "hook-d300-4.jsonl")
         self.assertEqual(len(rows), 150)
         with tempfile.TemporaryDirectory() as d:
             path = plot_success_map(rows, Path(d) / "m.png", title="row 4")
@@ -183,25 +184,25 @@ class SuccessMapPlotTest(unittest.TestCase):
 
 
 class CatchPointPlanTest(unittest.TestCase):
-    """`grid --catch-point K` plans as the data set does: table1-row3's second
-    catch point is the one studies/catch_points/catch_points.py mapped."""
+    """`grid --catch-point K` plans as the data set does: hook-d300-4's second
+    catch point is the data set's (made on the finger throw, the named
+    scenario FingerThrow)."""
 
     def test_second_catch_point_and_one_too_many(self):
         from regrasp_drake.grid import plan_object
         from regrasp_drake.planning.ik import ArmIk
         from regrasp_drake.station.scenario import load_scenario
         from regrasp_drake.world.objects import resolve_object
-        scenario, ik = load_scenario(), ArmIk()
-        obj = resolve_object(name="table1-row3")
-        stored = json.loads((Path(__file__).parents[1] / "studies" /
-                             "catch_points" / "catch_points" / "plans" /
-                             "table1-row3@2.json").read_text())
+        scenario, ik = load_scenario(name="FingerThrow"), ArmIk()
+        obj = resolve_object(name="hook-d300-4")
+        stored = json.loads((Path(__file__).parents[1] / "models" / "dataset"
+                             / "plans" / "hook-d300-4@2.json").read_text())
         plan = plan_object(scenario, obj, ik, catch_point=2)
         self.assertEqual(plan.as_dict(), stored["plan"])
         with self.assertRaises(InputError) as e:
-            plan_object(scenario, obj, ik, catch_point=5)
-        self.assertIn("--catch-point: got 5, expected at most 4",
-                      str(e.exception))
+            plan_object(scenario, obj, ik, catch_point=99)
+        self.assertRegex(str(e.exception), r"^--catch-point: got 99, expected "
+                         r"at most \d+: object hook-d300-4 has \d+ reachable")
 
 
 class ProgressTest(unittest.TestCase):
