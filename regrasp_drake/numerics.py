@@ -4,12 +4,13 @@ NumPy picks its SIMD kernels (sin, cos, exp, reductions, …) at import time
 from the CPU's features, and its OpenBLAS picks its matrix kernels the same
 way. On a machine with AVX-512 both take other kernels than on an AVX2-only
 one, whose results differ in the last bits. A throw that rolls the object
-across the palm amplifies such bits: measured with
-studies/release_spin/release_spin.py, the object's state at the end of the throw
-differed by up to 0.5 (rad/s in the spin) for 7 of the 56 training objects
-between the machine that generated the first 96 maps of models/dataset (AVX2)
-and an AVX-512 one, and by 0 for the rest; with the kernels pinned as below
-the AVX-512 machine reproduced that machine's states bit for bit.
+across the palm amplifies such bits: measured with the release-spin
+study (the finger throw's; git history keeps it), the object's state at
+the end of the throw differed by up to 0.5 (rad/s in the spin) for 7 of
+the 56 training objects between the machine that generated the first 96
+maps of models/dataset (AVX2) and an AVX-512 one, and by 0 for the rest;
+with the kernels pinned as below the AVX-512 machine reproduced that
+machine's states bit for bit.
 
 So before NumPy is imported, `pin()` (called when `regrasp_drake` is
 imported) asks for the AVX2 kernels on every x86-64 machine that has AVX2:

@@ -10,7 +10,7 @@ from pathlib import Path
 
 def load_script(path: str):
     """The script at `path` (from the repository's top, e.g.
-    "studies/catch_timing/catch_timing.py"), imported as the module named by
+    "benchmarks/noise_curve.py"), imported as the module named by
     its file name (registered in sys.modules, so that its functions pickle
     for a process pool)."""
     name = Path(path).stem

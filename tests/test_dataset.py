@@ -174,7 +174,8 @@ class GenerateTest(unittest.TestCase):
         # The finished set (provenance.json) and a set whose first run was
         # killed (scenario.yaml only) both refuse another scenario before
         # any simulation, naming the first field that differs.
-        hold = REPO / "studies" / "failure_modes" / "hold_0.5.yaml"
+        hold = self.root / "hold_0.5.yaml"  # the grasp monitor's hold doubled
+        hold.write_text("monitor:\n  hold_s: 0.5\n")
         killed = self.root / "killed"
         killed.mkdir()
         (killed / "scenario.yaml").write_text(scenario_text())

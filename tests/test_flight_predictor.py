@@ -341,18 +341,17 @@ class AtReleaseTest(unittest.TestCase):
 class ReleasePlanToleranceTest(unittest.TestCase):
     """The catch planned from a held-out object's release lies inside the
     catch tolerance the hand absorbs: the largest radius within which every
-    palm offset in the palm's plane still catches, measured by
-    studies/catch_tolerance/catch_tolerance.py (10 mm grid, 81 throws) and
-    read from its JSON. (The flight predicted from the object's features does
-    not: its palm is 9-93 mm off, studies/catch_tolerance/FINDINGS.md.)"""
+    palm offset in the palm's plane still catches. (The flight predicted
+    from the object's features does not: its palm was 9-93 mm off.)"""
+
+    # holdout-scraper-d330's tolerance on the finger throw: 22.4 mm (10 mm
+    # grid, 81 throws; studies/catch_tolerance/catch_tolerance.json, deleted
+    # with that study after commit e49d554: git history keeps it).
+    TOLERANCE_M = 0.0224
 
     def test_held_out_object(self):
         name = "holdout-scraper-d330"
-        tolerance = json.loads((Path(__file__).parents[1] / "studies" /
-                                "catch_tolerance" / "catch_tolerance.json")
-                               .read_text())
-        tolerance_m = tolerance["objects"][name]["tolerance_mm"] / 1000
-        self.assertGreater(tolerance_m, 0.0)
+        tolerance_m = self.TOLERANCE_M
         scenario, ik = load_scenario(), ArmIk()
         obj = load_catalogue()[name]
         watched = watch(scenario, obj, ik)

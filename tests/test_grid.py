@@ -169,15 +169,16 @@ class ResumeCheckTest(unittest.TestCase):
 
 
 class SuccessMapPlotTest(unittest.TestCase):
-    """`grid --plot`: the stored table1-row4 map (studies/failure_modes)
-    drawn by ending, with its label framed."""
+    """`grid --plot`: a stored map of the data set (table1-row3's at the
+    shipped step, which catches and drops) drawn by ending, with its label
+    framed."""
 
     def test_plot_written(self):
-        rows = read_rows(Path(__file__).parents[1] / "studies" / "failure_modes"
-                         / "failure_modes" / "table1-row4.jsonl")
+        rows = read_rows(Path(__file__).parents[1] / "models" / "results"
+                         / "maps" / "table1-row3.jsonl")
         self.assertEqual(len(rows), 150)
         with tempfile.TemporaryDirectory() as d:
-            path = plot_success_map(rows, Path(d) / "m.png", title="row 4")
+            path = plot_success_map(rows, Path(d) / "m.png", title="row 3")
             self.assertEqual(path.read_bytes()[:8], b"\x89PNG\r\n\x1a\n")
             self.assertGreater(path.stat().st_size, 10_000)
 

@@ -1,5 +1,6 @@
-"""studies/noise_curve/noise_curve.py: its catch-rate intervals, its refusals,
-and one noiseless trial per mode from the shipped libraries."""
+"""benchmarks/noise_curve.py: its catch-rate intervals, its refusals,
+and one noiseless trial per mode from the shipped libraries (learned on the
+finger throw: FingerThrow)."""
 
 import contextlib
 import io
@@ -10,7 +11,7 @@ from pathlib import Path
 
 from tests.refusals import RefusalAssertions, load_script
 
-noise_curve = load_script("studies/noise_curve/noise_curve.py")
+noise_curve = load_script("benchmarks/noise_curve.py")
 
 
 class WilsonIntervalTest(unittest.TestCase):
@@ -50,17 +51,20 @@ class NoiseCurveTest(RefusalAssertions, unittest.TestCase):
         self.assertRefused(["--workers", "0", *out], "--workers", "got 0")
         self.assertRefused(["--library", "/nonexistent.yaml", *out],
                            "--library", "/nonexistent.yaml")
+        self.assertRefused(["--scenario-name", "Nope", *out],
+                           "--scenario-name: got 'Nope'")
         self.assertFalse(self.out.with_suffix(".jsonl").exists())
 
     def test_noiseless_trials_catch_as_the_learning_phase_did(self):
-        # table1-row5 was caught in all three modes (models/results); the
-        # same parameters without noise catch again, one throw per mode
-        # (two when watching first).
+        # table1-row5 was caught in all three modes (models/results, on
+        # the finger throw); the same parameters without noise catch again
+        # on it, one throw per mode (two when watching first).
         with contextlib.redirect_stdout(io.StringIO()), \
                 contextlib.redirect_stderr(io.StringIO()):
             code = self.main([
                 "--objects", "table1-row5", "--levels", "0", "--trials", "1",
-                "--workers", "1", "--out", str(self.out)])
+                "--workers", "1", "--scenario-name", "FingerThrow",
+                "--out", str(self.out)])
         self.assertEqual(code, 0)
         rows = [json.loads(line) for line in
                 self.out.with_suffix(".jsonl").read_text().splitlines()]
@@ -72,6 +76,7 @@ class NoiseCurveTest(RefusalAssertions, unittest.TestCase):
             point = summary["curves"][mode][0]
             self.assertEqual((point["trials"], point["caught"]), (1, 1))
             self.assertEqual(point["catch_rate_95"][1], 1.0)
+        self.assertEqual(summary["scenario"], "--scenario-name FingerThrow")
         self.assertGreater(self.out.with_suffix(".png").stat().st_size, 10_000)
 
 

@@ -55,7 +55,7 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
     children run at once.
     `handoff`: (t_s, other scenario), to simulate up to t_s under `scenario`
     and from there under the other (the same throw, caught at another plant
-    time step: studies/timestep_convergence/timestep_study.py); t_s must
+    time step: benchmarks/map_convergence.py); t_s must
     come before any cell's trigger.
     """
     t0 = time.perf_counter()

@@ -1,9 +1,9 @@
 """Side by side: the release's convergence figures of several runs of
-studies/palm_toss/release_convergence.py (discrete steps, CENIC accuracies),
+benchmarks/release_convergence.py (discrete steps, CENIC accuracies),
 as one Markdown table per figure, and each run's wall time.
 
     .venv/bin/python studies/cenic/release_table.py
-        --runs "discrete 0.25/0.0625 ms=/work/main/out/palm_toss_release_q"
+        --runs "discrete 0.25/0.0625 ms=out/palm_toss_release_q"
                "CENIC 1e-3/1e-4=out/cenic_release_1e-3" ...
         [--objects NAME ...] [--cross LABEL LABEL]
 
@@ -76,7 +76,8 @@ def table(runs: dict, objects: list) -> str:
 
 def cross(runs: dict, a: str, b: str, objects: list) -> str:
     """The four figures between run a's fine setting and run b's."""
-    path = Path(__file__).parents[1] / "palm_toss" / "release_convergence.py"
+    path = (Path(__file__).parents[2] / "benchmarks"
+            / "release_convergence.py")
     spec = importlib.util.spec_from_file_location("_release", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)

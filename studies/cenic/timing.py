@@ -14,7 +14,6 @@ from regrasp_drake.station.scenario import load_scenario
 from regrasp_drake.throw_catch import watch
 from regrasp_drake.world.objects import load_catalogue
 
-SCENARIO = "studies/palm_toss/palm_toss.yaml"
 CENIC = ("{plant_config: {time_step: 0}, simulator_config: "
          "{integration_scheme: cenic, accuracy: %s}}")
 SETTINGS = {"discrete 0.25 ms": "{plant_config: {time_step: 0.00025}}",
@@ -25,7 +24,7 @@ OBJECTS = ["can-d100-1", "table1-row1", "hammer-d400-6"]
 
 def main() -> None:
     ik, catalogue = ArmIk(), load_catalogue()
-    scenarios = {k: load_scenario(SCENARIO, text=v)
+    scenarios = {k: load_scenario(text=v)
                  for k, v in SETTINGS.items()}
     walls = {k: [] for k in SETTINGS}
     for rep in range(2):

@@ -1,0 +1,415 @@
+"""Do success maps converge as the plant's time step shrinks?
+
+    .venv/bin/python benchmarks/map_convergence.py
+        [--objects table1-row1 … table1-row5] [--steps-ms 0.25 0.125]
+        [--flights-only] [--throw-step-ms X]
+        [--scenario F] [--scenario-name NAME] [--workers 2]
+        [--out out/map_convergence]
+
+For each object and each time step (the scenario, by default the shipped
+one, with only `time_step_s` changed): the watching throw, the object's
+state when the throw ends (the release: its velocity and its angular
+velocity in its own frame),
+the planned catch point, and the whole 150-cell success map. Then, for every
+pair of steps, how many cells have the same outcome, against the agreement
+two unrelated maps with the same catch rates would show by chance,
+p·q + (1 − p)·(1 − q) of the cells.
+
+A map that is a converged function of the physics agrees more and more
+closely as the step halves; one decided by the discretization agrees with
+its neighbours no better than chance. For each map also the throws the
+learning phase would count on it, offline: the watch, the shipped network's
+cell for that step's catch point, then the wavefront's or the map prior's
+cells up to the first that catches.
+
+Writes <out>/<object>_<step>ms.jsonl (one line per cell, as it finishes; a
+rerun resumes; <out>/scenario.json records the scenario, and an --out holding
+another scenario's results is refused), <out>.json (the figures) and
+<out>.png (every map, and the agreements against chance). With
+--flights-only: the watching throws alone, `workers` at a time, into
+<out>/flights.jsonl (resumable), and a PNG of each object's spin and
+catch-point shift between the coarsest and finest steps.
+"""
+
+# regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
+# (regrasp_drake/numerics.py), so that results match across x86-64 machines.
+import regrasp_drake  # noqa: F401, I001 (first, see above)
+import argparse
+import contextlib
+import importlib.util
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+# --scenario and --scenario-name, shared by the benchmarks.
+_spec = importlib.util.spec_from_file_location(
+    "scenario_args", Path(__file__).with_name("scenario_args.py"))
+scenario_args = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(scenario_args)
+
+_OBJECTS = [f"table1-row{k}" for k in range(1, 6)]
+_STEPS_MS = [0.25, 0.125]
+
+
+def agreement(a, b) -> dict:
+    """Cells with the same outcome in boolean maps a and b, and the number
+    two independent maps with their catch rates would share by chance."""
+    a, b = np.asarray(a, bool), np.asarray(b, bool)
+    p, q = a.mean(), b.mean()
+    return {"same": int((a == b).sum()),
+            "chance": round(float(a.size * (p * q + (1 - p) * (1 - q))), 1),
+            "cells": int(a.size)}
+
+
+def release_state(scenario, obj, logs) -> dict:
+    """The object's state at the first logged sample after the throw ends:
+    v_WO (m/s) and w_O, the angular velocity in the object's frame (rad/s)."""
+    from pydrake.common.eigen_geometry import Quaternion
+    from pydrake.math import RotationMatrix
+
+    from regrasp_drake.station import throw
+    t_free = scenario.throw.settle_s + throw.end_s(scenario.throw)
+    k = int(np.searchsorted(logs.t, t_free))
+    x = logs.object_state[:, k]
+    R_WO = RotationMatrix(Quaternion(x[:4] / np.linalg.norm(x[:4]))).matrix()
+    return {"t_s": round(float(logs.t[k]), 4),
+            "v_WO": [round(float(c), 4) for c in x[10:13]],
+            "w_O": [round(float(c), 4) for c in R_WO.T @ x[7:10]]}
+
+
+def _scenario(step_ms, scenario_path=None):
+    from regrasp_drake.station.scenario import load_scenario, with_time_step
+    return with_time_step(load_scenario(scenario_path), step_ms / 1e3)
+
+
+def claim_out_dir(out: Path, scenario_path=None) -> None:
+    """Records in <out>/scenario.json the scenario (all but the plant's time
+    step) the
+    maps and flights in `out` come from, or refuses, naming --out and
+    --scenario, a scenario other than the one recorded: the resumable files
+    there are keyed by object, step and cell only, and would mix runs."""
+    from regrasp_drake.errors import InputError
+    from regrasp_drake.station.scenario import (
+        load_scenario,
+        scenario_yaml,
+        with_time_step,
+    )
+    # The scenario's YAML at one fixed step (a string: it holds tags).
+    fields = scenario_yaml(with_time_step(load_scenario(scenario_path), 0.001))
+    record = out / "scenario.json"
+    if record.is_file():
+        if json.loads(record.read_text()) != fields:
+            raise InputError(
+                f"--out {out}: holds results of another scenario than "
+                f"--scenario {scenario_path or '(the shipped one)'} (see "
+                f"{record}); expected a fresh --out")
+        return
+    out.mkdir(parents=True, exist_ok=True)
+    record.write_text(json.dumps(fields, indent=1) + "\n")
+
+
+def flight(name, step_ms, scenario_path=None):
+    """The watching throw at one step (of the scenario at `scenario_path`,
+    None: the shipped one): the release state and the planned catch
+    (catch_point None when no moment is reachable); also returns the plan,
+    for the map."""
+    from regrasp_drake.errors import InputError
+    from regrasp_drake.planning.ik import ArmIk
+    from regrasp_drake.throw_catch import plan_catch, watch
+    from regrasp_drake.world.objects import resolve_object
+    scenario = _scenario(step_ms, scenario_path)
+    obj, ik = resolve_object(name=name), ArmIk()
+    watched = watch(scenario, obj, ik)
+    row = {"object": name, "step_ms": step_ms,
+           "release": release_state(scenario, obj, watched.logs),
+           "catch_point": None}
+    try:
+        plan = plan_catch(scenario, obj, ik, watched)
+    except InputError:
+        return row, None
+    cp = plan.catch_point
+    row["catch_point"] = {"t_s": round(cp.t_s, 4),
+                          "p_WO": [round(float(c), 4) for c in cp.p_WO],
+                          "tilt": round(float(cp.tilt), 4),
+                          "v_catch": round(float(cp.v_catch), 4)}
+    return row, (scenario, obj, ik, plan)
+
+
+def _flight_row(task):
+    return flight(*task)[0]
+
+
+def map_at_step(name, step_ms, out_dir: Path, workers: int,
+                throw_step_ms=None, scenario_path=None) -> dict:
+    """The flight and the 150-cell success map of one object at one step.
+    With `throw_step_ms`: the watch, the plan and every catching throw up to
+    the throw's end at that step, the rest of each catch at `step_ms`."""
+    from regrasp_drake.grid import run_map
+    row, setup = flight(name, throw_step_ms or step_ms, scenario_path)
+    if setup is None:
+        raise SystemExit(f"map_convergence: error: {name} at "
+                         f"{throw_step_ms or step_ms:g} ms: no reachable catch "
+                         "point, no map")
+    path = out_dir / f"{name}_{step_ms:g}ms.jsonl"
+    handoff = None
+    if throw_step_ms:
+        path = out_dir / f"{name}_{step_ms:g}ms_throw{throw_step_ms:g}ms.jsonl"
+        throw = setup[0].throw
+        handoff = (throw.settle_s + throw.knot_times_s[-1],
+                   _scenario(step_ms, scenario_path))
+    rows = run_map(*setup, path, workers=workers, handoff=handoff)
+    caught = np.zeros((10, 15), bool)
+    for cell, cell_row in rows.items():
+        caught[cell] = cell_row["outcome"] == "caught"
+    if throw_step_ms:
+        row = row | {"step_ms": step_ms, "throw_step_ms": throw_step_ms}
+    return row | {"cells_caught": int(caught.sum()),
+                  "caught": caught.astype(int).tolist(),
+                  "table1": table1_throws(setup[1], setup[3], caught)}
+
+
+def table1_throws(obj, plan, caught) -> dict:
+    """What the learning phase would count on this map, offline: the shipped
+    network's cell for this step's catch point (its v_catch), then each
+    search's cells until one catches in `caught`; throws include the watch
+    (None: no cell catches)."""
+    from regrasp_drake.grid import nearest_cell
+    from regrasp_drake.learning.learning_phase import network_features, predict
+    from regrasp_drake.learning.search import (
+        attempts_to_catch,
+        feature_weighted_order,
+        load_prior_maps,
+        wavefront_order,
+    )
+    from regrasp_drake.paths import MODELS_DIR
+    from regrasp_drake.station.mlp_system import load_weights
+    model, _ = load_weights(MODELS_DIR / "catch_mlp.pt")
+    features = network_features(obj, plan.catch_point)
+    start = nearest_cell(*predict(model, features)[1])
+    _, prior, prior_features = load_prior_maps(with_features=True)
+    out = {"network_cell": list(start)}
+    for search, order in (
+            ("wavefront", wavefront_order(start)),
+            ("map_prior", feature_weighted_order(start, prior, prior_features,
+                                                 features))):
+        n = attempts_to_catch(order, caught)
+        out[f"throws_{search}"] = None if n is None else n + 1
+    return out
+
+
+def _shift(row, finest) -> dict:
+    """How far `row`'s release spin and catch moment are from the finest
+    step's."""
+    out = {"w_O_rad_per_s": round(float(np.linalg.norm(
+        np.subtract(row["release"]["w_O"], finest["release"]["w_O"]))), 3)}
+    a, b = row["catch_point"], finest["catch_point"]
+    if a and b:
+        out["catch_t_ms"] = round(1e3 * (a["t_s"] - b["t_s"]), 1)
+        out["catch_p_mm"] = round(1e3 * float(np.linalg.norm(
+            np.subtract(a["p_WO"], b["p_WO"]))), 1)
+    return out
+
+
+def summarize(results: dict, steps_ms) -> dict:
+    """results[name][step] as flight's rows (with map_at_step's fields when
+    maps were run). Adds each step's shift from the finest step and, with
+    maps, the pairwise agreement of the maps (steps in the order given)."""
+    finest = min(steps_ms)
+    summary = {"steps_ms": list(steps_ms), "objects": {}}
+    for name, by_step in results.items():
+        s = summary["objects"][name] = {
+            "by_step": {f"{step:g}": by_step[step] for step in steps_ms},
+            "shift_from_finest": {f"{step:g}": _shift(by_step[step],
+                                                      by_step[finest])
+                                  for step in steps_ms}}
+        if all("caught" in by_step[step] for step in steps_ms):
+            maps = [np.array(by_step[step]["caught"], bool)
+                    for step in steps_ms]
+            pairs = [[agreement(a, b) for b in maps] for a in maps]
+            s["agreement_same"] = [[p["same"] for p in row] for row in pairs]
+            s["agreement_chance"] = [[p["chance"] for p in row]
+                                     for row in pairs]
+    return summary
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--objects", nargs="+", default=_OBJECTS)
+    parser.add_argument("--steps-ms", type=float, nargs="+", default=_STEPS_MS)
+    parser.add_argument("--flights-only", action="store_true",
+                        help="the watching throws only, no success maps")
+    parser.add_argument("--throw-step-ms", type=float,
+                        help="simulate every throw to its end at this step, "
+                             "only the catch at each of --steps-ms")
+    scenario_args.add(parser)  # only its time_step_s is varied
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--out", type=Path, default=Path("out/map_convergence"),
+                        help="a directory of rows; <out>.json and <out>.png "
+                             "beside it")
+    args = parser.parse_args(argv)
+    with contextlib.ExitStack() as stack:
+        return _run(args, stack)
+
+
+def _run(args, stack) -> int:
+    from regrasp_drake.errors import InputError
+    from regrasp_drake.station.scenario import load_scenario
+    from regrasp_drake.world.objects import resolve_object
+    try:
+        label = scenario_args.resolved(args, stack)
+        load_scenario(args.scenario)
+        for flag, steps in (("--steps-ms", args.steps_ms),
+                            ("--throw-step-ms", [args.throw_step_ms or 1.0])):
+            for step in steps:
+                try:
+                    _scenario(step, args.scenario)
+                except InputError as e:
+                    raise InputError(f"{flag} {step:g}: {e}") from None
+        if args.throw_step_ms and args.flights_only:
+            raise InputError("--throw-step-ms: a catch-only study needs maps, "
+                             "not --flights-only")
+        for name in args.objects:
+            resolve_object(name=name)
+        if args.workers < 1:
+            raise InputError(f"--workers {args.workers}: expected >= 1")
+        claim_out_dir(args.out, args.scenario)
+    except InputError as e:
+        print(f"map_convergence: error: {e}", file=sys.stderr)
+        return 2
+    import torch
+    torch.set_num_threads(1)
+    args.out.mkdir(parents=True, exist_ok=True)
+    results = {name: {} for name in args.objects}
+    if args.flights_only:
+        from regrasp_drake.grid import append_rows, read_rows
+        lines = args.out / "flights.jsonl"
+        key = lambda row: (row["object"], row["step_ms"])  # noqa: E731
+        done = read_rows(lines, key=key)
+        tasks = [(name, step, args.scenario) for name in args.objects
+                 for step in args.steps_ms if (name, step) not in done]
+        append_rows(_flight_row, tasks, lines, done, key,
+                    workers=args.workers, label="flights", unit="throws")
+        for (name, step), row in done.items():
+            if name in results and step in args.steps_ms:
+                results[name][step] = row
+    else:
+        for name in args.objects:
+            for step in args.steps_ms:
+                print(f"{name}, step {step:g} ms", file=sys.stderr)
+                results[name][step] = map_at_step(
+                    name, step, args.out, args.workers, args.throw_step_ms,
+                    args.scenario)
+    summary = summarize(results, args.steps_ms) | {
+        "throw_step_ms": args.throw_step_ms,
+        "scenario": label}
+    args.out.with_suffix(".json").write_text(json.dumps(summary) + "\n")
+    _print(summary)
+    (_plot_flights if args.flights_only else _plot_maps)(
+        summary, args.out.with_suffix(".png"))
+    return 0
+
+
+def _print(summary):
+    steps = summary["steps_ms"]
+    for name, s in summary["objects"].items():
+        print(f"\n{name}")
+        for i, step in enumerate(steps):
+            b = s["by_step"][f"{step:g}"]
+            shift = s["shift_from_finest"][f"{step:g}"]
+            cp = b["catch_point"]
+            line = (f"  {step:>6g} ms: w_O at release "
+                    f"{np.round(b['release']['w_O'], 2)} rad/s "
+                    f"({shift['w_O_rad_per_s']:.2f} from the finest step); ")
+            line += ("no reachable catch point" if cp is None else
+                     f"catch at t {cp['t_s']:.3f} s, tilt {cp['tilt']:.2f}, "
+                     f"v {cp['v_catch']:.2f} m/s")
+            if "catch_p_mm" in shift:
+                line += f" ({shift['catch_p_mm']:.0f} mm from the finest)"
+            if "table1" in b:
+                t = b["table1"]
+                line += (f"; network cell {tuple(t['network_cell'])}, "
+                         f"throws {t['throws_wavefront']} (wavefront), "
+                         f"{t['throws_map_prior']} (map prior)")
+            if "agreement_same" in s:
+                same = " ".join(f"{n:>3}/{c:>5.1f}" for n, c in zip(
+                    s["agreement_same"][i], s["agreement_chance"][i]))
+                line += (f"; {b['cells_caught']:>3}/150 catch; same cells / "
+                         f"chance vs each step: {same}")
+            print(line)
+
+
+def _plot_maps(summary, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    steps = summary["steps_ms"]
+    names = list(summary["objects"])
+    fig, axes = plt.subplots(len(names), len(steps) + 1,
+                             figsize=(2.6 * (len(steps) + 1), 2.5 * len(names)),
+                             squeeze=False)
+    for row, name in zip(axes, names):
+        s = summary["objects"][name]
+        for ax, step in zip(row, steps):
+            b = s["by_step"][f"{step:g}"]
+            ax.imshow(np.array(b["caught"]), origin="lower", cmap="Greens",
+                      vmin=0, vmax=1.3, extent=(-14.5, 0.5, 0.02, 0.42),
+                      aspect="auto")
+            ax.set_title(f"{name}, {step:g} ms\n{b['cells_caught']}/150, "
+                         f"catch t {b['catch_point']['t_s']:.3f} s", fontsize=8)
+            ax.set_xlabel("h_down (cm)", fontsize=7)
+            ax.set_ylabel("h_catch (m)", fontsize=7)
+            ax.tick_params(labelsize=6)
+        ax = row[-1]
+        x = np.arange(len(steps) - 1)
+        same = [s["agreement_same"][i][i + 1] for i in x]
+        chance = [s["agreement_chance"][i][i + 1] for i in x]
+        ax.bar(x - 0.2, same, 0.4, label="same outcome")
+        ax.bar(x + 0.2, chance, 0.4, color="lightgray", label="chance")
+        ax.set_xticks(x, [f"{a:g}-{b:g}" for a, b in zip(steps, steps[1:])],
+                      fontsize=6)
+        ax.set_xlabel("step pair (ms)", fontsize=7)
+        ax.set_ylim(0, 150)
+        ax.set_title("cells agreeing, neighbouring steps", fontsize=8)
+        ax.legend(fontsize=6)
+    throw = summary.get("throw_step_ms")
+    fig.suptitle("Success maps against the plant's time step (green: caught)"
+                 + (f"; every throw at {throw:g} ms, only the catch at the "
+                    "step" if throw else "")
+                 + (f"; scenario {summary['scenario']}"
+                    if summary.get("scenario") else ""), fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def _plot_flights(summary, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    steps = summary["steps_ms"]
+    coarse = f"{max(steps):g}"
+    names = sorted(summary["objects"], key=lambda n: summary["objects"][n][
+        "shift_from_finest"][coarse]["w_O_rad_per_s"])
+    shifts = [summary["objects"][n]["shift_from_finest"][coarse]
+              for n in names]
+    fig, axes = plt.subplots(2, 1, figsize=(max(6, 0.16 * len(names)), 6),
+                             sharex=True)
+    x = np.arange(len(names))
+    axes[0].bar(x, [s["w_O_rad_per_s"] for s in shifts])
+    axes[0].set_ylabel("|Δ w_O| at release (rad/s)", fontsize=8)
+    axes[1].bar(x, [s.get("catch_p_mm", np.nan) for s in shifts],
+                color="tab:orange")
+    axes[1].set_ylabel("catch point moved (mm)", fontsize=8)
+    axes[1].set_xticks(x, names, rotation=90, fontsize=6)
+    fig.suptitle(f"Watching throw at {coarse} ms against {min(steps):g} ms",
+                 fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
