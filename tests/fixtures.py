@@ -9,8 +9,8 @@ from regrasp_drake.world.objects import resolve_object
 
 class Row2Fixture:
     """Mixin for a unittest.TestCase: setUpClass gives `scenario` (the
-    shipped scenario at a 1 ms step: "Fast"), `obj` (table1-row2) and `ik`, with one torch
-    thread (the tests fork)."""
+    shipped scenario at a 1 ms step: "Fast"), `obj` (table1-row2) and
+    `ik`, with one torch thread (the tests fork)."""
 
     @classmethod
     def setUpClass(cls):

@@ -90,7 +90,8 @@ class TestLearningPhase(unittest.TestCase):
         constant_weights(d / "catches.pt", 0.28, -0.12)
         # learn, then apply, as a user runs them.
         cls.learned = _cli("learn", "--object", OBJECT, "--scenario-name",
-                           "Fast", "--weights", str(d / "catches.pt"), "--library", str(cls.library),
+                           "Fast", "--weights", str(d / "catches.pt"),
+                           "--library", str(cls.library),
                            "--json", str(d / "learn.json"), "--html",
                            str(d / "learn.html"), "--plot", str(d / "search.png"))
         cls.learn_json = (json.loads((d / "learn.json").read_text())

@@ -128,7 +128,8 @@ class TestCatalogue(unittest.TestCase):
 
     def test_sets_and_table1(self):
         sets = [spec.set for spec in self.catalogue.values()]
-        self.assertEqual(sets, ["train"] * 56 + ["test"] * 5 + ["holdout"] * 6)
+        self.assertEqual(sets, ["train"] * 48 + ["ablation"] * 8 + ["test"] * 5
+                         + ["holdout"] * 6)
         train_geometries = {
             s.geometry for s in self.catalogue.values() if s.set == "train"
         }

@@ -2,7 +2,6 @@
 the padded palm and rounded boxes, and a watched toss."""
 
 import unittest
-from pathlib import Path
 
 import numpy as np
 
@@ -24,7 +23,6 @@ from regrasp_drake.station.scenario import (
 from regrasp_drake.station.station import build_episode_diagram, initialize
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world.objects import load_catalogue
-
 
 
 class TossMotionTest(unittest.TestCase):

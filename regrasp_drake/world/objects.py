@@ -30,8 +30,8 @@ Pieces (lengths in metres, all axis-aligned in O):
 Pieces must not overlap (they may touch) and must form one connected body.
 Objects: ``name`` (unique), ``set`` (train|ablation|test|holdout),
 ``geometry`` (a key of the same file's ``geometries``), ``density`` (kg/m³,
-the object's mean density, the feature d_obj), ``h_cm`` and ``r_cm`` (m). Every key listed is required,
-unknown keys are refused.
+the object's mean density, the feature d_obj), ``h_cm`` and ``r_cm`` (m).
+Every key listed is required, unknown keys are refused.
 
 Bounds (what a PUMA 560 with this hand can throw; anything else is refused):
   - ``name``: 1 to 64 letters, digits and ``._+-``, starting with a letter or
