@@ -112,6 +112,33 @@ def _rows_of(out: Path, entry: str) -> dict:
     return rows
 
 
+class OldPhysicsTest(unittest.TestCase):
+    def setUp(self):
+        self.tmp = tempfile.TemporaryDirectory()
+        self.addCleanup(self.tmp.cleanup)
+
+    def test_a_finger_throw_set_is_not_resumed_under_the_palm_toss(self):
+        # A set begun under the retired throw (its scenario.yaml the named
+        # scenario FingerThrow's), resumed under the shipped one: refused
+        # before any simulation, naming the first field that differs, and
+        # what it holds is left as it was.
+        from regrasp_drake.station.scenario import load_scenario, scenario_yaml
+        old = Path(self.tmp.name) / "finger_throw"
+        (old / "cells").mkdir(parents=True)
+        text = scenario_yaml(load_scenario(name="FingerThrow"))
+        (old / "scenario.yaml").write_text(text)
+        (old / "cells" / "table1-row2.jsonl").write_text('{"cell": [0, 0]}\n')
+        with self.assertRaises(InputError) as e:
+            generate(OBJECTS, old, workers=1, only=COARSE, progress=False)
+        self.assertEqual(
+            str(e.exception).split(" (")[0],
+            f"--scenario: catch.catch_height_m is 0.45 here but 0.78 in the "
+            f"data set in {old}")
+        self.assertEqual((old / "scenario.yaml").read_text(), text)
+        self.assertEqual((old / "cells" / "table1-row2.jsonl").read_text(),
+                         '{"cell": [0, 0]}\n')
+
+
 class GenerateTest(unittest.TestCase):
     """Two objects on a coarse grid: serial, and with 2 workers killed
     mid-run and resumed with 2 workers (or on Ray), give the same rows."""
