@@ -128,7 +128,7 @@ class PredictorTest(unittest.TestCase):
     def test_shipped_predictor_is_the_fit_on_the_shipped_data_set(self):
         # What `regrasp-drake train-flight` writes, byte for byte.
         objects, states = dataset_flights(MODELS_DIR / "dataset")
-        self.assertEqual(len(objects), 56)
+        self.assertEqual(len(objects), 48)
         predictor = FlightPredictor.fit(
             objects, states, t_free_s=free_time_s(load_scenario()))
         with tempfile.TemporaryDirectory() as d:
@@ -290,7 +290,7 @@ class AtReleaseTest(unittest.TestCase):
                                      self.obj, self.scenario)
         plan = plan_catch(self.scenario, self.obj, self.ik, flight)
         self.assertAlmostEqual(plan.catch_point.t_s,
-                               self.watch_plan.catch_point.t_s, places=9)
+                               self.watch_plan.catch_point.t_s, delta=1e-5)
         # Measured 8 µm (the object's tumble, propagated 0.48 s).
         self.assertLess(np.linalg.norm(
             plan.X_WG.translation() - self.watch_plan.X_WG.translation()),
@@ -306,7 +306,7 @@ class AtReleaseTest(unittest.TestCase):
         self.assertEqual(r.attempts[0].cell, r.start_cell)
         self.assertEqual(len(self.episodes), r.throws)
         self.assertAlmostEqual(r.plan.catch_point.t_s,
-                               self.watch_plan.catch_point.t_s, places=9)
+                               self.watch_plan.catch_point.t_s, delta=1e-5)
         self.assertLess(np.linalg.norm(
             r.plan.X_WG.translation() - self.watch_plan.X_WG.translation()),
             1e-3)
@@ -322,14 +322,16 @@ class AtReleaseTest(unittest.TestCase):
                                sum(a.sim_time_s for a in r.attempts), places=9)
 
     def test_no_reachable_catch_point_at_release(self):
-        # Its watched flight has none either (README: held-out objects).
+        # Under the finger throw (named scenario FingerThrow) its watched
+        # flight has none either; under the palm toss every object has one.
+        scenario = load_scenario(name="FingerThrow")
         obj = load_catalogue()["holdout-scraper-d180"]
         with self.assertRaises(NoCatchPoint) as caught:
-            learn(self.scenario, obj, self.model, ik=self.ik, at_release=True,
+            learn(scenario, obj, self.model, ik=self.ik, at_release=True,
                   max_throws=3, progress=None)
         self.assertEqual(caught.exception.throws, 1)
         self.assertAlmostEqual(caught.exception.sim_time_s,
-                               release_time(self.scenario))
+                               release_time(scenario))
 
     def test_not_with_a_flight_predictor(self):
         with self.assertRaises(InputError):
@@ -339,19 +341,14 @@ class AtReleaseTest(unittest.TestCase):
 
 
 class ReleasePlanToleranceTest(unittest.TestCase):
-    """The catch planned from a held-out object's release lies inside the
-    catch tolerance the hand absorbs: the largest radius within which every
-    palm offset in the palm's plane still catches. (The flight predicted
-    from the object's features does not: its palm was 9-93 mm off.)"""
-
-    # holdout-scraper-d330's tolerance on the finger throw: 22.4 mm (10 mm
-    # grid, 81 throws; studies/catch_tolerance/catch_tolerance.json, deleted
-    # with that study after commit e49d554: git history keeps it).
-    TOLERANCE_M = 0.0224
+    """The catch planned from a held-out object's state at release (its
+    free flight propagated in closed form) is the watching throw's plan:
+    within 10 µs, 1 mm and 1 degree, far inside the 10 mm of the catch
+    tolerance benchmark's grid. (The flight predicted from the object's
+    features alone is not: models/flight_predictor.json.report.json.)"""
 
     def test_held_out_object(self):
         name = "holdout-scraper-d330"
-        tolerance_m = self.TOLERANCE_M
         scenario, ik = load_scenario(), ArmIk()
         obj = load_catalogue()[name]
         watched = watch(scenario, obj, ik)
@@ -361,10 +358,9 @@ class ReleasePlanToleranceTest(unittest.TestCase):
         planned = plan_catch(scenario, obj, ik, flight_from_release(
             watched.logs.object_state[:, k], t, obj, scenario))
         self.assertAlmostEqual(planned.catch_point.t_s,
-                               actual.catch_point.t_s, places=9)
+                               actual.catch_point.t_s, delta=1e-5)
         X_GP = actual.X_WG.inverse() @ planned.X_WG  # in the palm's frame
-        self.assertLess(np.linalg.norm(X_GP.translation()[:2]), tolerance_m)
-        self.assertLess(abs(X_GP.translation()[2]), tolerance_m)
+        self.assertLess(np.linalg.norm(X_GP.translation()), 1e-3)
         self.assertLess(X_GP.rotation().ToAngleAxis().angle(), np.radians(1))
 
 
