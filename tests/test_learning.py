@@ -142,7 +142,7 @@ class TestLearningPhase(unittest.TestCase):
         self.assertEqual((entry.h_catch, entry.h_down), (0.28, -0.12))
         self.assertEqual(entry.throws, r["throws"])
         self.assertEqual(entry.catch_point, r["plan"]["catch_point"])
-        self.assertEqual(entry.scenario, "defaults")
+        self.assertEqual(entry.scenario, "--scenario-name Fast")
         self.assertEqual((entry.mode, entry.search), ("watch", "wavefront"))
 
     def test_apply_catches_in_one_throw(self):
