@@ -131,9 +131,9 @@ class CenicTrackingTest(unittest.TestCase):
 
 
 class ReleaseConvergenceOptionsTest(RefusalAssertions, unittest.TestCase):
-    """studies/palm_toss/release_convergence.py's two-scenario options."""
+    """benchmarks/release_convergence.py's two-scenario options."""
     main = staticmethod(
-        load_script("studies/palm_toss/release_convergence.py").main)
+        load_script("benchmarks/release_convergence.py").main)
 
     def test_bad_options_are_refused_before_any_work(self):
         with tempfile.TemporaryDirectory() as d:
@@ -145,6 +145,8 @@ class ReleaseConvergenceOptionsTest(RefusalAssertions, unittest.TestCase):
                                 "--fine-scenario-text",
                                 "{simulator_config: {accuracy: 2}}", *out],
                                "simulator_config.accuracy")
+            self.assertRefused(["--scenario-name", "Nope", *out],
+                               "--scenario-name: got 'Nope'")
             self.assertFalse((Path(d) / "rows.jsonl").exists())
 
 

@@ -38,7 +38,8 @@ class TestCli(unittest.TestCase):
         self.assertEqual(result.returncode, 0, result.stderr)
         rows = json.loads(result.stdout)
         sets = [r["set"] for r in rows]
-        self.assertEqual(sets.count("train"), 56)
+        self.assertEqual(sets.count("train"), 48)
+        self.assertEqual(sets.count("ablation"), 8)
         self.assertEqual(sets.count("test"), 5)
         self.assertEqual({r["name"] for r in rows if r["set"] == "test"},
                          {f"table1-row{i}" for i in range(1, 6)})

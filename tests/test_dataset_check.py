@@ -39,8 +39,8 @@ class DatasetCheckTest(RefusalAssertions, unittest.TestCase):
         code, result = self._run(self.copy, self.root / "same.json")
         self.assertEqual(code, 0)
         self.assertTrue(result["identical"])
-        self.assertEqual(result["entries"], 224)
-        self.assertEqual(result["cells_compared"], 33300)
+        self.assertEqual(result["entries"], 48)
+        self.assertEqual(result["cells_compared"], 7200)
         provenance = json.loads((SHIPPED / "provenance.json").read_text())
         self.assertEqual(result["runs"], provenance["runs"])
 

@@ -77,7 +77,7 @@ def _library_seed() -> dict:
     return yaml.safe_load(path.read_text())
 
 
-ENTRY = "adze-d150-1"  # a data set entry with a plan and a map
+ENTRY = "hammer-d100-1"  # a data set entry with a plan and a map
 
 
 def _samples_seed() -> list:

@@ -133,7 +133,7 @@ class TestCatalogue(unittest.TestCase):
         train_geometries = {
             s.geometry for s in self.catalogue.values() if s.set == "train"
         }
-        self.assertEqual(len(train_geometries), 11)
+        self.assertEqual(len(train_geometries), 9)
         for name, (geometry, density, h_cm, r_cm) in TABLE1.items():
             spec = self.catalogue[name]
             self.assertEqual(
