@@ -341,6 +341,38 @@ class UnreachableLoweringTest(unittest.TestCase):
         self.assertEqual(summary["plan"]["deepest_reachable_h_down"], -0.03)
 
 
+class FirstThrowCatchPointCheckTest(unittest.TestCase):
+    """`table1 --first-throw`: every row carries the catch point planned
+    from the predicted flight beside a watching throw's, and the Markdown
+    shows both; the watch is a check, not a throw."""
+
+    def test_planned_beside_watched(self):
+        from regrasp_drake.learning.flight_predictor import FlightPredictor
+        from regrasp_drake.learning.table1 import format_markdown, run_table1
+        from regrasp_drake.throw_catch import plan_catch, watch
+        scenario, ik = load_scenario(name="Fast"), ArmIk()
+        model, _ = load_weights(MODELS_DIR / "catch_mlp.pt")
+        predictor = FlightPredictor.load(MODELS_DIR / "flight_predictor.json")
+        (row,) = run_table1(scenario, model, ik=ik, objects=["table1-row2"],
+                            flight_predictor=predictor, max_throws=2,
+                            progress=None)
+        check = row["catch_point_check"]
+        obj = load_catalogue()["table1-row2"]
+        watched = plan_catch(scenario, obj, ik, watch(scenario, obj, ik))
+        planned = plan_catch(scenario, obj, ik,
+                             predictor.as_watched(obj, scenario))
+        self.assertEqual(check["watched"]["t_s"],
+                         round(watched.catch_point.t_s, 4))
+        self.assertEqual(check["planned"]["t_s"],
+                         round(planned.catch_point.t_s, 4))
+        self.assertAlmostEqual(check["palm_offset_mm"], 1000 * np.linalg.norm(
+            planned.X_WG.translation() - watched.X_WG.translation()),
+            delta=0.05)
+        self.assertEqual(row["throws"], len(row["attempts"]))  # no watch
+        self.assertIn("| table1-row2 | ", format_markdown([row]).split(
+            "a check, not counted in the throws")[1])
+
+
 class Table1ObjectsTest(unittest.TestCase):
     """`table1 --objects`: a Table 1 object keeps its row and the paper's
     figures; another object is numbered in order, without them."""
