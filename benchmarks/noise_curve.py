@@ -16,8 +16,8 @@ number), so every figure is reproducible.
 Each object's parameters are the ones its learning phase found without
 noise (the regrasp library files that `regrasp-drake table1 --library …`,
 with `--first-throw` and with `--at-release`, write; those of the shipped
-network are in models/results/library_table1*.yaml). The scenario (default: the shipped one) is that of the
-libraries' learning phase. A trial:
+network are in models/results/library_table1*.yaml). The scenario (default:
+the shipped one) is that of the libraries' learning phase. A trial:
   watch-then-catch: a noisy watching throw, the catch planned from it, then
       a noisy catching throw (a different perturbation) with those
       parameters;
