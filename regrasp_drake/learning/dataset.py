@@ -359,8 +359,10 @@ def _run_ray(tasks, workers):
                  logging_level=logging.ERROR,  # not Ray's start-up notes
                  runtime_env={"env_vars": pinned}, **local)
     try:
-        # A task lost with its node is retried (Ray's default): an entry's
-        # result does not depend on where or how often it is computed.
+        # A task lost with its node is retried (Ray's default, max_retries
+        # 3; tests/test_ray_cluster.py kills a node mid-entry): an entry's
+        # result does not depend on where or how often it is computed, and
+        # only the returned result is written, so no cell is written twice.
         remote = ray.remote(num_cpus=1)(_remote_entry)
         texts = {}  # scenario file -> its text, read once
         waiting = {}  # task -> the output directory of its entry
