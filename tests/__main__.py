@@ -23,8 +23,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 # Wall seconds of the slowest modules run alone on 2 idle cores.
 COSTS_S = {
-    "tests.test_dataset": 120.0,
-    "tests.test_ray_cluster": 70.0,
+    "tests.test_dataset": 190.0,
     "tests.test_cli": 160.0,
     "tests.test_input_fuzz": 60.0,
     "tests.test_grasp_monitor": 100.0,

@@ -355,12 +355,14 @@ def _run_ray(tasks, workers):
     if started:
         local = {} if address else {"num_cpus": workers,
                                     "include_dashboard": False}
-        ray.init(address=address, log_to_driver=False,
+        # "local": a Ray of our own even when another runs on this machine
+        # (ray.init without an address would join that one).
+        ray.init(address=address or "local", log_to_driver=False,
                  logging_level=logging.ERROR,  # not Ray's start-up notes
                  runtime_env={"env_vars": pinned}, **local)
     try:
         # A task lost with its node is retried (Ray's default, max_retries
-        # 3; tests/test_ray_cluster.py kills a node mid-entry): an entry's
+        # 3; tests/test_dataset.py RayClusterTest kills a node mid-entry): an entry's
         # result does not depend on where or how often it is computed, and
         # only the returned result is written, so no cell is written twice.
         remote = ray.remote(num_cpus=1)(_remote_entry)
