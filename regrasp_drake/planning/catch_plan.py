@@ -281,10 +281,11 @@ def move_torque_ratio(ik: ArmIk, q_start, q_end, duration_s: float,
     rest in `duration_s` (`catch_state_machine.quintic_from`), by inverse
     dynamics of the arm and hand (the object is in flight). Above 1 the
     servos saturate: the arm lags, overshoots and reaches the grasp position
-    late. `gravity`: count the arm's weight too (the palm toss's plans). The
-    finger throw's shipped plans were checked without it, a gap found with
-    the palm toss (the controller does compensate gravity) that the throw's
-    rebuild (issue 26) closes; until then they stay reproducible."""
+    late. `gravity`: count the arm's weight too (the palm toss's plans, the
+    shipped ones). The finger throw's plans (`FingerThrow`) are checked
+    without it, as its data set was made, so that they stay reproducible
+    (the controller does compensate gravity: a gap found with the palm
+    toss)."""
     plant = ik.plant
     context = plant.CreateDefaultContext()
     forces = MultibodyForces(plant)
