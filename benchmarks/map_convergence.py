@@ -1,13 +1,15 @@
-"""Do success maps converge as the plant's time step shrinks?
+"""Do success maps converge as the catch's time step shrinks?
 
     .venv/bin/python benchmarks/map_convergence.py
-        [--objects table1-row1 … table1-row5] [--steps-ms 0.25 0.125]
+        [--objects table1-row1 … table1-row5] [--steps-ms 1 0.5]
         [--flights-only] [--throw-step-ms X]
         [--scenario F] [--scenario-name NAME] [--workers 2]
         [--out out/map_convergence]
 
-For each object and each time step (the scenario, by default the shipped
-one, with only `time_step_s` changed): the watching throw, the object's
+For each object and each step of the catch (the scenario, by default the
+shipped one, with only `catch_time_step_s` changed: the plant's step from
+the release time on; the throw at the scenario's plant_config.time_step, or
+at --throw-step-ms): the watching throw, the object's
 state when the throw ends (the release: its velocity and its angular
 velocity in its own frame),
 the planned catch point, and the whole 150-cell success map. Then, for every
@@ -50,7 +52,7 @@ scenario_args = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(scenario_args)
 
 _OBJECTS = [f"table1-row{k}" for k in range(1, 6)]
-_STEPS_MS = [0.25, 0.125]
+_STEPS_MS = [1.0, 0.5]
 
 
 def agreement(a, b) -> dict:
@@ -79,13 +81,22 @@ def release_state(scenario, obj, logs) -> dict:
             "w_O": [round(float(c), 4) for c in R_WO.T @ x[7:10]]}
 
 
-def _scenario(step_ms, scenario_path=None):
-    from regrasp_drake.station.scenario import load_scenario, with_time_step
-    return with_time_step(load_scenario(scenario_path), step_ms / 1e3)
+def _scenario(step_ms, scenario_path=None, throw_step_ms=None):
+    """The scenario with its catch at step_ms (and its throw at
+    throw_step_ms, if given)."""
+    from regrasp_drake.station.scenario import (
+        load_scenario,
+        with_catch_time_step,
+        with_time_step,
+    )
+    scenario = load_scenario(scenario_path)
+    if throw_step_ms:
+        scenario = with_time_step(scenario, throw_step_ms / 1e3)
+    return with_catch_time_step(scenario, step_ms / 1e3)
 
 
 def claim_out_dir(out: Path, scenario_path=None) -> None:
-    """Records in <out>/scenario.json the scenario (all but the plant's time
+    """Records in <out>/scenario.json the scenario (all but the catch's time
     step) the
     maps and flights in `out` come from, or refuses, naming --out and
     --scenario, a scenario other than the one recorded: the resumable files
@@ -94,10 +105,11 @@ def claim_out_dir(out: Path, scenario_path=None) -> None:
     from regrasp_drake.station.scenario import (
         load_scenario,
         scenario_yaml,
-        with_time_step,
     )
-    # The scenario's YAML at one fixed step (a string: it holds tags).
-    fields = scenario_yaml(with_time_step(load_scenario(scenario_path), 0.001))
+    # The scenario's YAML at one fixed catch step (a string: it holds tags).
+    scenario = load_scenario(scenario_path)
+    scenario.catch_time_step_s = None
+    fields = scenario_yaml(scenario)
     record = out / "scenario.json"
     if record.is_file():
         if json.loads(record.read_text()) != fields:
@@ -110,8 +122,8 @@ def claim_out_dir(out: Path, scenario_path=None) -> None:
     record.write_text(json.dumps(fields, indent=1) + "\n")
 
 
-def flight(name, step_ms, scenario_path=None):
-    """The watching throw at one step (of the scenario at `scenario_path`,
+def flight(name, step_ms, scenario_path=None, throw_step_ms=None):
+    """The watching throw at one catch step (of the scenario at `scenario_path`,
     None: the shipped one): the release state and the planned catch
     (catch_point None when no moment is reachable); also returns the plan,
     for the map."""
@@ -119,7 +131,7 @@ def flight(name, step_ms, scenario_path=None):
     from regrasp_drake.planning.ik import ArmIk
     from regrasp_drake.throw_catch import plan_catch, watch
     from regrasp_drake.world.objects import resolve_object
-    scenario = _scenario(step_ms, scenario_path)
+    scenario = _scenario(step_ms, scenario_path, throw_step_ms)
     obj, ik = resolve_object(name=name), ArmIk()
     watched = watch(scenario, obj, ik)
     row = {"object": name, "step_ms": step_ms,
@@ -143,23 +155,17 @@ def _flight_row(task):
 
 def map_at_step(name, step_ms, out_dir: Path, workers: int,
                 throw_step_ms=None, scenario_path=None) -> dict:
-    """The flight and the 150-cell success map of one object at one step.
-    With `throw_step_ms`: the watch, the plan and every catching throw up to
-    the throw's end at that step, the rest of each catch at `step_ms`."""
+    """The flight and the 150-cell success map of one object at one catch
+    step (the throw at `throw_step_ms`, if given)."""
     from regrasp_drake.grid import run_map
-    row, setup = flight(name, throw_step_ms or step_ms, scenario_path)
+    row, setup = flight(name, step_ms, scenario_path, throw_step_ms)
     if setup is None:
         raise SystemExit(f"map_convergence: error: {name} at "
-                         f"{throw_step_ms or step_ms:g} ms: no reachable catch "
-                         "point, no map")
+                         f"{step_ms:g} ms: no reachable catch point, no map")
     path = out_dir / f"{name}_{step_ms:g}ms.jsonl"
-    handoff = None
     if throw_step_ms:
         path = out_dir / f"{name}_{step_ms:g}ms_throw{throw_step_ms:g}ms.jsonl"
-        throw = setup[0].throw
-        handoff = (throw.settle_s + throw.knot_times_s[-1],
-                   _scenario(step_ms, scenario_path))
-    rows = run_map(*setup, path, workers=workers, handoff=handoff)
+    rows = run_map(*setup, path, workers=workers)
     caught = np.zeros((10, 15), bool)
     for cell, cell_row in rows.items():
         caught[cell] = cell_row["outcome"] == "caught"
@@ -242,8 +248,8 @@ def main(argv=None) -> int:
     parser.add_argument("--flights-only", action="store_true",
                         help="the watching throws only, no success maps")
     parser.add_argument("--throw-step-ms", type=float,
-                        help="simulate every throw to its end at this step, "
-                             "only the catch at each of --steps-ms")
+                        help="the throw's plant step (default: the "
+                             "scenario's); the catch at each of --steps-ms")
     scenario_args.add(parser)  # only its time_step_s is varied
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path, default=Path("out/map_convergence"),
@@ -261,16 +267,14 @@ def _run(args, stack) -> int:
     try:
         label = scenario_args.resolved(args, stack)
         load_scenario(args.scenario)
-        for flag, steps in (("--steps-ms", args.steps_ms),
-                            ("--throw-step-ms", [args.throw_step_ms or 1.0])):
-            for step in steps:
-                try:
-                    _scenario(step, args.scenario)
-                except InputError as e:
-                    raise InputError(f"{flag} {step:g}: {e}") from None
-        if args.throw_step_ms and args.flights_only:
-            raise InputError("--throw-step-ms: a catch-only study needs maps, "
-                             "not --flights-only")
+        for step in args.steps_ms:
+            try:
+                _scenario(step, args.scenario, args.throw_step_ms)
+            except InputError as e:
+                raise InputError(
+                    f"--steps-ms {step:g}"
+                    + (f" --throw-step-ms {args.throw_step_ms:g}"
+                       if args.throw_step_ms else "") + f": {e}") from None
         for name in args.objects:
             resolve_object(name=name)
         if args.workers < 1:
@@ -288,7 +292,8 @@ def _run(args, stack) -> int:
         lines = args.out / "flights.jsonl"
         key = lambda row: (row["object"], row["step_ms"])  # noqa: E731
         done = read_rows(lines, key=key)
-        tasks = [(name, step, args.scenario) for name in args.objects
+        tasks = [(name, step, args.scenario, args.throw_step_ms)
+                 for name in args.objects
                  for step in args.steps_ms if (name, step) not in done]
         append_rows(_flight_row, tasks, lines, done, key,
                     workers=args.workers, label="flights", unit="throws")
@@ -375,9 +380,8 @@ def _plot_maps(summary, path):
         ax.set_title("cells agreeing, neighbouring steps", fontsize=8)
         ax.legend(fontsize=6)
     throw = summary.get("throw_step_ms")
-    fig.suptitle("Success maps against the plant's time step (green: caught)"
-                 + (f"; every throw at {throw:g} ms, only the catch at the "
-                    "step" if throw else "")
+    fig.suptitle("Success maps against the catch's time step (green: "
+                 "caught)" + (f"; every throw at {throw:g} ms" if throw else "")
                  + (f"; scenario {summary['scenario']}"
                     if summary.get("scenario") else ""), fontsize=9)
     fig.tight_layout()

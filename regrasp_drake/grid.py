@@ -76,14 +76,13 @@ def append_rows(function, tasks, path: Path, done: dict, key, *,
 
 
 def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
-            progress=True, only=None, handoff=None) -> dict:
+            progress=True, only=None) -> dict:
     """Runs every cell of `obj`'s success map not yet in `out` (JSON lines,
     appended and flushed as each cell finishes); returns {cell: row}.
 
     The cells share one simulated throw up to their triggers (see
     station/branching.py); `workers` simulations run at once. `only`: a
-    subset of the cells (a coarse map), default all. `handoff`: see
-    branching.run_cells."""
+    subset of the cells (a coarse map), default all."""
     out = Path(out)
     done = read_rows(out)
     wanted = cells() if only is None else [tuple(c) for c in only]
@@ -103,7 +102,7 @@ def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
                           start, obj.name)
         run_cells(scenario, obj, ik=ik, X_WG=plan.X_WG,
                   parameters=[cell_parameters(c) for c in todo],
-                  workers=workers, on_result=write, handoff=handoff)
+                  workers=workers, on_result=write)
     if progress:
         end_progress()
     return done

@@ -1,13 +1,24 @@
 """Forked cells give the same episodes as whole runs."""
 
+import copy
+import dataclasses as dc
 import unittest
 from unittest import mock
 
 import numpy as np
+import torch
 
+from regrasp_drake.errors import InputError
 from regrasp_drake.grid import plan_object
+from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.branching import run_cells
-from regrasp_drake.station.episode import read_ending, run_episode
+from regrasp_drake.station.episode import (
+    read_ending,
+    release_time,
+    run_episode,
+)
+from regrasp_drake.station.scenario import load_scenario
+from regrasp_drake.world.objects import resolve_object
 from tests.fixtures import Row2Fixture
 
 
@@ -53,27 +64,69 @@ class RunCellsTest(Row2Fixture, unittest.TestCase):
             outcomes.add(row["outcome"])
         self.assertEqual(outcomes, {"caught", "dropped"})
 
-    def test_handoff_to_the_same_scenario_changes_nothing(self):
-        # Handing the simulation over to a station built alike, when the
-        # throw ends, goes on bit for bit.
-        parameters = [(0.40, -0.05), (0.08, -0.13), (0.20, 0.0)]
-        t_end = (self.scenario.throw.settle_s
-                 + self.scenario.throw.knot_times_s[-1])
-        # Without the handoff: the rows of setUpClass's run.
-        plain = [self.rows[self.parameters.index(p)] for p in parameters]
-        handed = run_cells(self.scenario, self.obj, ik=self.ik,
-                           X_WG=self.plan.X_WG, parameters=parameters,
-                           handoff=(t_end, self.scenario), workers=2)
-        for a, b in zip(plain, handed):
-            self.assertEqual((a["outcome"], a["sim_time_s"], a["catch_time_s"]),
-                             (b["outcome"], b["sim_time_s"], b["catch_time_s"]))
-            np.testing.assert_array_equal(a["p_WO_final"], b["p_WO_final"])
+    def test_handover_to_the_same_step_changes_nothing(self):
+        # Handing the episode over at the release time to a station built
+        # alike goes on bit for bit: the whole episode, its logs included.
+        parameters = (0.20, -0.09)
+        plain = run_episode(self.scenario, self.obj, ik=self.ik,
+                            X_WG=self.plan.X_WG, catch_parameters=parameters)
+        same = copy.deepcopy(self.scenario)
+        with mock.patch("regrasp_drake.station.episode.catch_phase_scenario",
+                        return_value=same):
+            handed = run_episode(self.scenario, self.obj, ik=self.ik,
+                                 X_WG=self.plan.X_WG,
+                                 catch_parameters=parameters)
+        self.assertEqual((plain.outcome, plain.sim_time_s, plain.catch_time_s),
+                         (handed.outcome, handed.sim_time_s,
+                          handed.catch_time_s))
+        np.testing.assert_array_equal(plain.p_WO_final, handed.p_WO_final)
+        for field in dc.fields(plain.logs):
+            np.testing.assert_array_equal(getattr(plain.logs, field.name),
+                                          getattr(handed.logs, field.name),
+                                          err_msg=field.name)
 
-    def test_handoff_after_the_hand_waits_refused(self):
-        with self.assertRaisesRegex(ValueError, "already waits"):
-            run_cells(self.scenario, self.obj, ik=self.ik,
-                      X_WG=self.plan.X_WG, parameters=[(0.2, -0.05)],
-                      handoff=(1.3, self.scenario))
+
+class HandoverTest(unittest.TestCase):
+    """The throw at 0.5 ms, the catch at 1 ms (a cheaper stand-in for the
+    shipped 0.25 and 1 ms): forked cells still equal whole episodes, and
+    the logs run on across the handover."""
+
+    @classmethod
+    def setUpClass(cls):
+        torch.set_num_threads(1)
+        cls.scenario = load_scenario(
+            name="Fast", text="{plant_config: {time_step: 0.0005}, "
+                              "catch_time_step_s: 0.001}")
+        cls.obj = resolve_object(name="table1-row2")
+        cls.ik = ArmIk()
+        cls.plan = plan_object(cls.scenario, cls.obj, cls.ik)
+
+    def test_forked_cells_equal_whole_episodes(self):
+        parameters = [(0.40, -0.05), (0.08, -0.13)]
+        rows = run_cells(self.scenario, self.obj, ik=self.ik,
+                         X_WG=self.plan.X_WG, parameters=parameters,
+                         workers=2)
+        for (h_catch, h_down), row in zip(parameters, rows):
+            whole = run_episode(self.scenario, self.obj, ik=self.ik,
+                                X_WG=self.plan.X_WG,
+                                catch_parameters=(h_catch, h_down))
+            self.assertEqual((row["outcome"], row["sim_time_s"],
+                              row["catch_time_s"]),
+                             (whole.outcome, round(whole.sim_time_s, 4),
+                              whole.catch_time_s))
+            np.testing.assert_array_equal(row["p_WO_final"], whole.p_WO_final)
+            # One log sample per sensor period, across the handover too.
+            steps = np.diff(whole.logs.t)
+            np.testing.assert_allclose(
+                steps, self.scenario.sensors.period_s, atol=1e-9)
+            t_release = release_time(self.scenario)
+            self.assertTrue(whole.logs.t[0] < t_release < whole.logs.t[-1])
+
+    def test_catch_step_finer_than_the_throws_refused(self):
+        with self.assertRaisesRegex(InputError, "catch_time_step_s"):
+            load_scenario(name="Fast", text="{catch_time_step_s: 0.0005}")
+        with self.assertRaisesRegex(InputError, "catch_time_step_s"):
+            load_scenario(name="Fast", text="{catch_time_step_s: 0.0015}")
 
 
 class ReadEndingTest(unittest.TestCase):

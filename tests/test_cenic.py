@@ -19,7 +19,8 @@ from regrasp_drake.world import robot
 from regrasp_drake.world.objects import load_catalogue
 from tests.refusals import RefusalAssertions, load_script
 
-CENIC = ("{plant_config: {time_step: 0}, simulator_config: "
+CENIC = ("{plant_config: {time_step: 0}, catch_time_step_s: null, "
+         "simulator_config: "
          "{integration_scheme: cenic, accuracy: 1e-3}}")
 
 

@@ -108,13 +108,14 @@ class BadInputTest(RefusalAssertions, unittest.TestCase):
                            "sensors.period_s")
 
     def test_step_out_of_range_and_unknown_object_refused(self):
-        self.assertRefused(["--steps-ms", "7"], "plant_config.time_step: got 0.007")
+        self.assertRefused(["--steps-ms", "7"], "catch_time_step_s: got 0.007")
+        # The catch finer than the throw's 0.25 ms.
+        self.assertRefused(["--steps-ms", "0.125"],
+                           "--steps-ms 0.125: catch_time_step_s: got 0.000125")
         self.assertRefused(["--objects", "no-such-object"], "'no-such-object'")
 
     def test_bad_throw_step_refused_naming_the_flag(self):
         self.assertRefused(["--throw-step-ms", "0.3"], "--throw-step-ms 0.3")
-        self.assertRefused(["--throw-step-ms", "1", "--flights-only"],
-                           "--throw-step-ms: a catch-only study needs maps")
 
     def test_missing_scenario_file_refused_naming_it(self):
         self.assertRefused(["--scenario", "/no/such/scenario.yaml"],
@@ -157,9 +158,9 @@ class OutDirTest(unittest.TestCase):
             with self.assertRaisesRegex(InputError, r"--out .*study: holds "
                                         r"results of another scenario"):
                 study.claim_out_dir(out, other)
-            # Only the time step may differ: it is what the study varies.
+            # Only the catch's step may differ: it is what the study varies.
             step = Path(tmp) / "step.yaml"
-            step.write_text("time_step_s: 0.0005\n")
+            step.write_text("catch_time_step_s: 0.0005\n")
             study.claim_out_dir(out, step)
 
 

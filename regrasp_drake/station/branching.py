@@ -32,18 +32,18 @@ from regrasp_drake.errors import check_interrupt
 from regrasp_drake.station.catch_state_machine import Phase
 from regrasp_drake.station.episode import (
     advance_to_outcome,
+    hand_over,
     read_ending,
     read_outcome,
 )
 from regrasp_drake.station.station import (
     build_episode_diagram,
-    continue_with,
     initialize,
 )
 
 
 def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
-              on_result=None, handoff=None) -> list[dict]:
+              on_result=None) -> list[dict]:
     """Runs one catch episode per (h_catch, h_down) in `parameters`.
 
     Returns one dict per entry, in order: h_catch, h_down, outcome,
@@ -53,29 +53,27 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
     and spin_rad_per_s (episode.read_ending).
     `on_result(i, row)` is called as each cell finishes. At most `workers`
     children run at once.
-    `handoff`: (t_s, other scenario), to simulate up to t_s under `scenario`
-    and from there under the other (the same throw, caught at another plant
-    time step: benchmarks/map_convergence.py); t_s must
-    come before any cell's trigger.
+    With a catch step of its own (scenario.catch_time_step_s), the shared
+    run is handed over to it at the release time (episode.hand_over), as
+    `run_episode`'s.
     """
     t0 = time.perf_counter()
     parameters = [(float(h), float(d)) for h, d in parameters]
     episode = build_episode_diagram(scenario, obj, ik=ik, X_WG=X_WG,
                                     catch_parameters=(0.0, 0.0))
     simulator = initialize(episode, scenario)
-    if handoff is not None:
-        t_handoff, later = handoff
-        advance_to_outcome(simulator, episode, scenario, t_handoff)
+    handover = hand_over(
+        simulator, episode, scenario,
+        lambda later: build_episode_diagram(later, obj, ik=ik, X_WG=X_WG,
+                                            catch_parameters=(0.0, 0.0)))
+    if handover.before is not None:
+        simulator, episode, scenario = handover.now
         machine = episode.controller.state_machine
         phase = machine.GetOutputPort("phase").Eval(
             machine.GetMyContextFromRoot(simulator.get_context()))[0]
         if phase >= Phase.WAIT:
-            raise ValueError(f"handoff at t = {t_handoff} s: the hand already "
-                             "waits (a cell may have triggered)")
-        other = build_episode_diagram(later, obj, ik=ik, X_WG=X_WG,
-                                      catch_parameters=(0.0, 0.0))
-        simulator = continue_with(simulator, episode, other, later)
-        episode, scenario = other, later
+            raise ValueError("the hand already waits at the release time "
+                             "(a cell may have triggered)")
     source = episode.controller.parameters
     ir_levels = episode.station.GetOutputPort("ir_levels")
     machine = episode.controller.state_machine
@@ -146,7 +144,7 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
 
     try:
         message = ""
-        k = round(context.get_time() / period)  # 0, or the handoff's sample
+        k = round(context.get_time() / period)  # 0, or the release time's (handed over)
         while waiting:
             check_interrupt()
             k += 1

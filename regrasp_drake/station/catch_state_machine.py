@@ -355,6 +355,15 @@ class CatchStateMachine(LeafSystem):
     def _calc_phase(self, context, output: BasicVector):
         output.SetAtIndex(0, context.get_discrete_state(self._state)[_PHASE])
 
+    def continue_at(self, context) -> None:
+        """Counts this machine's steps in `context` (copied from a machine
+        of another plant step, at a sensor sample: station.continue_with) at
+        this machine's step, so that its transitions stay on the sensors'
+        samples."""
+        x = context.get_discrete_state(self._state).value().copy()
+        x[_TICK] = round(context.get_time() / self._dt)
+        context.SetDiscreteState(self._state, x)
+
     # ---- transitions ---------------------------------------------------
     def _update(self, context, discrete_state):
         x = context.get_discrete_state(self._state).value().copy()

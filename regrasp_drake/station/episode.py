@@ -14,11 +14,12 @@ from regrasp_drake.station.grasp_monitor import (
     Outcome,
     contact_verdict,
 )
-from regrasp_drake.station.scenario import Scenario
+from regrasp_drake.station.scenario import Scenario, catch_phase_scenario
 from regrasp_drake.station.station import (
     EpisodeDiagram,
     Loggers,
     build_episode_diagram,
+    continue_with,
     initialize,
 )
 from regrasp_drake.world.objects import ObjectSpec
@@ -98,21 +99,32 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
         meshcat.StartRecording(set_visualizations_while_recording=False)
     simulator = initialize(episode, scenario)
     build_s = time.perf_counter() - t0
-    if at_release is not None:
-        try:
-            _plan_at_release(simulator, episode, scenario, at_release)
-        except Exception:
-            if meshcat is not None:
-                meshcat.StopRecording()
-            raise
-    message = advance_to_outcome(simulator, episode, scenario)
+
+    def rebuild(later):
+        return build_episode_diagram(
+            later, obj, ik=ik, X_WG=X_WG, catch_parameters=catch_parameters,
+            mlp_features=mlp_features, meshcat=meshcat,
+            throw_number=throw_number)
+
+    handover = hand_over(simulator, episode, scenario, rebuild)
+    simulator, episode, scenario = handover.now
+    message = handover.message
+    if handover.running:
+        if at_release is not None:
+            try:
+                _plan_at_release(simulator, episode, scenario, at_release)
+            except Exception:
+                if meshcat is not None:
+                    meshcat.StopRecording()
+                raise
+        message = advance_to_outcome(simulator, episode, scenario)
     wall_s = time.perf_counter() - t0
     if meshcat is not None:
         meshcat.StopRecording()
         meshcat.PublishRecording()
     context = simulator.get_context()
     outcome, grasp_t = read_outcome(episode, context, message)
-    logs = _read_logs(episode.loggers, context)
+    logs = handover.logs(_read_logs(episode.loggers, context))
     station = episode.station
     h = logs.params[:, -1] if logs.params.shape[1] else (None, None)
     return EpisodeResult(
@@ -137,6 +149,63 @@ def release_time(scenario: Scenario) -> float:
     return math.ceil(t / period - 1e-9) * period
 
 
+@dc.dataclass
+class Handover:
+    """An episode handed over, at the release time, from the throw's plant
+    step to the catch's (scenario.catch_time_step_s; see `hand_over`)."""
+    # (simulator, episode, scenario) to go on with: the catch's, or the
+    # throw's when there was no handover.
+    now: tuple
+    # The throw's (simulator, episode) when handed over, for its logs.
+    before: tuple | None
+    # A failure's message, if the episode failed before the release time.
+    message: str
+    # False when the episode ended before the release time.
+    running: bool
+
+    def logs(self, after: Logs) -> Logs:
+        """The whole episode's logs: the throw's, then `after`'s (the
+        loggers of the catch's diagram, from the release time on)."""
+        if self.before is None:
+            return after
+        simulator, episode = self.before
+        first = _read_logs(episode.loggers, simulator.get_context())
+        # Both diagrams log the release time: the throw's as its last step
+        # ends, the catch's as its simulator starts there. The first is the
+        # one a run without the handover logs.
+        keep = after.t > first.t[-1]
+        return Logs(**{f.name: np.concatenate(
+            [getattr(first, f.name), getattr(after, f.name)[..., keep]],
+            axis=-1) for f in dc.fields(Logs)})
+
+
+def hand_over(simulator, episode: EpisodeDiagram, scenario: Scenario,
+              rebuild) -> Handover:
+    """Simulates `episode` to the release time and goes on from there with
+    the diagram `rebuild(later)` builds for `later`, the scenario at the
+    catch's plant step (scenario.catch_phase_scenario), state for state
+    (station.continue_with). Without a catch step of its own, or when the
+    episode ends first, nothing is handed over. Drake handles the update
+    events of a time at the start of the next step, so every event at the
+    release time runs in the catch's diagram."""
+    later = catch_phase_scenario(scenario)
+    if later is None:
+        return Handover((simulator, episode, scenario), None, "", True)
+    t = release_time(scenario)
+    message = advance_to_outcome(simulator, episode, scenario, t)
+    context = simulator.get_context()
+    if (message or context.get_time() < t
+            or read_outcome(episode, context, "")[0] != "running"):
+        return Handover((simulator, episode, scenario), None, message, False)
+    other = rebuild(later)
+    simulator_later = continue_with(simulator, episode, other, later)
+    machine = other.controller.state_machine
+    machine.continue_at(machine.GetMyMutableContextFromRoot(
+        simulator_later.get_mutable_context()))
+    return Handover((simulator_later, other, later), (simulator, episode),
+                    "", True)
+
+
 def _plan_at_release(simulator, episode: EpisodeDiagram, scenario,
                      at_release) -> None:
     """Advances to the release time, asks at_release for the plan, and sets
@@ -144,7 +213,8 @@ def _plan_at_release(simulator, episode: EpisodeDiagram, scenario,
     update events of a time at the start of the next step, so the state
     machine's update at this time reads the new values."""
     t = release_time(scenario)
-    simulator.AdvanceTo(t)
+    if simulator.get_context().get_time() < t:  # not handed over there
+        simulator.AdvanceTo(t)
     context = simulator.get_mutable_context()
     station, controller = episode.station, episode.controller
     state = station.Eval("object_state", context)

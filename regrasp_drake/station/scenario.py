@@ -319,6 +319,15 @@ class Scenario:
     # failed to converge on throw impacts; a continuous plant ignores it);
     # Drake's other settings at Drake's defaults.
     plant_config: MultibodyPlantConfig = dc.field(default_factory=_plant_config)
+    # The discrete plant's time step from the throw's end on (the flight,
+    # the move to the grasp pose and the catch), [s]; null: plant_config's
+    # throughout. The episode is handed over to a plant with this step at
+    # the release time (episode.release_time: the first sensor sample after
+    # the throw ends), state for state (station.continue_with). The release
+    # converges at 0.25 ms, the catch at 1 ms (success maps at 1 against
+    # 0.5 ms: benchmarks/map_convergence.py). Must be null on a continuous
+    # plant.
+    catch_time_step_s: float | None = 0.001
     # The simulator and its integrator (Drake's SimulatorConfig, applied
     # with ApplySimulatorConfig as hardware_sim does). Drake's default
     # (runge_kutta3) integrates only the controllers' continuous states
@@ -398,6 +407,13 @@ def validate(s: Scenario) -> Scenario:
         _in_range("plant_config.time_step", dt, 1e-5, 5e-3,
                   " s, or 0 (a continuous plant)")
     _check_simulator_config(s.simulator_config, continuous=dt == 0.0)
+    if s.catch_time_step_s is not None:
+        if dt == 0.0:
+            raise field_error("catch_time_step_s", s.catch_time_step_s,
+                              "null with a continuous plant "
+                              "(plant_config.time_step 0)")
+        _in_range("catch_time_step_s", s.catch_time_step_s, dt, 5e-3,
+                  f" s (at least plant_config.time_step = {dt} s)")
     _check_directives(s.directives)
     if s.plant_config.contact_model != "point":
         raise field_error("plant_config.contact_model",
@@ -465,10 +481,12 @@ def validate(s: Scenario) -> Scenario:
                           "an integer >= 0")
     n = s.sensors
     _in_range("sensors.period_s", n.period_s, max(dt, 1e-4), 0.05, " s")
-    ratio = n.period_s / dt if dt else 1.0
-    if abs(ratio - round(ratio)) > 1e-9 * ratio:
-        raise field_error("sensors.period_s", n.period_s,
-                          f"a whole multiple of plant_config.time_step = {dt} s")
+    for name, step in (("plant_config.time_step", dt),
+                       ("catch_time_step_s", s.catch_time_step_s)):
+        ratio = n.period_s / step if step else 1.0
+        if abs(ratio - round(ratio)) > 1e-9 * ratio:
+            raise field_error("sensors.period_s", n.period_s,
+                              f"a whole multiple of {name} = {step} s")
     _in_range("sensors.palm_range_m", n.palm_range_m, 0.01, 1.0, " m")
     _in_range("sensors.approach_range_m", n.approach_range_m, 0.40, 2.0, " m")
     _in_range("sensors.levels", n.levels, 2, 1e6)
@@ -655,10 +673,36 @@ def _merged(base: dict, override: dict) -> dict:
 
 
 def with_time_step(scenario: Scenario, time_step_s: float) -> Scenario:
-    """A validated copy of `scenario` whose plant steps by time_step_s."""
+    """A validated copy of `scenario` whose plant steps by time_step_s
+    through the throw (the catch's step, catch_time_step_s, unchanged; null
+    if it would be finer than the throw's)."""
     copied = copy.deepcopy(scenario)
     copied.plant_config.time_step = float(time_step_s)
+    if (copied.catch_time_step_s is not None
+            and copied.catch_time_step_s < time_step_s):
+        copied.catch_time_step_s = None
+    if time_step_s == 0.0:
+        copied.catch_time_step_s = None
     return validate(copied)
+
+
+def with_catch_time_step(scenario: Scenario, time_step_s: float) -> Scenario:
+    """A validated copy of `scenario` whose plant steps by time_step_s from
+    the throw's end on (catch_time_step_s)."""
+    copied = copy.deepcopy(scenario)
+    copied.catch_time_step_s = float(time_step_s)
+    return validate(copied)
+
+
+def catch_phase_scenario(scenario: Scenario) -> Scenario | None:
+    """The scenario an episode goes on under from the release time: the
+    plant at catch_time_step_s; None when that is the throw's step."""
+    step = scenario.catch_time_step_s
+    if step is None or step == scenario.plant_config.time_step:
+        return None
+    copied = copy.deepcopy(scenario)
+    copied.plant_config.time_step = step
+    return copied
 
 
 def scenario_yaml(scenario: Scenario) -> str:

@@ -701,6 +701,16 @@ def continue_with(simulator: Simulator, episode: EpisodeDiagram,
         if context_a.num_continuous_states():
             context_b.SetContinuousState(
                 context_a.get_continuous_state_vector().CopyToVector())
+        if isinstance(a, MultibodyPlant):
+            continue  # its parameters are the model's, built alike
+        # Our systems' parameters: the catch parameters and the grasp pose,
+        # which may have been set in the running context.
+        for i in range(context_a.num_numeric_parameter_groups()):
+            context_b.get_mutable_numeric_parameter(i).SetFromVector(
+                context_a.get_numeric_parameter(i).get_value())
+        for i in range(context_a.num_abstract_parameters()):
+            context_b.get_mutable_abstract_parameter(i).SetFrom(
+                context_a.get_abstract_parameter(i))
     # The state is already the one to go on from: no initialization events.
     target.Initialize(InitializeParams(suppress_initialization_events=True))
     return target

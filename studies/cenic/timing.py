@@ -14,7 +14,8 @@ from regrasp_drake.station.scenario import load_scenario
 from regrasp_drake.throw_catch import watch
 from regrasp_drake.world.objects import load_catalogue
 
-CENIC = ("{plant_config: {time_step: 0}, simulator_config: "
+CENIC = ("{plant_config: {time_step: 0}, catch_time_step_s: null, "
+         "simulator_config: "
          "{integration_scheme: cenic, accuracy: %s}}")
 SETTINGS = {"discrete 0.25 ms": "{plant_config: {time_step: 0.00025}}",
             "CENIC 1e-5": CENIC % "1e-5",
