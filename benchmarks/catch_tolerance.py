@@ -14,8 +14,9 @@ scenario's for the catches only (the watched plan stays the scenario's).
 The offsets, in mm in the palm's plane (x across the object's axis, y along
 it): "all" is the 25 of a ±20 mm grid, 10 mm apart.
 
-Prints one JSON line per offset (the monitor's outcome, the drop reason and
-the contact verdict) and a summary line; the lines also go to
+Prints one JSON line per offset (the scenario's digest, the cell, the
+offset, the monitor's outcome, the drop reason and the contact verdict) and
+a summary line; the lines also go to
 <out>/<OBJECT>_<H_CATCH>_<H_DOWN>[_<tag>].jsonl. The watched plan is cached
 in <out>/, per object and scenario.
 """
@@ -109,10 +110,12 @@ def _run(args, stack) -> int:
     from regrasp_drake.planning.ik import ArmIk
     from regrasp_drake.station.episode import (
         advance_to_outcome,
+        hand_over,
         read_ending,
         read_outcome,
         release_time,
     )
+    from regrasp_drake.station.scenario import scenario_digest
     from regrasp_drake.station.station import build_episode_diagram, initialize
     args.out.mkdir(parents=True, exist_ok=True)
     ik = ArmIk()
@@ -122,7 +125,14 @@ def _run(args, stack) -> int:
                                     catch_parameters=(args.h_catch,
                                                       args.h_down))
     sim = initialize(station, scenario)
-    sim.AdvanceTo(release_time(scenario))
+    # To the release time, at the catch's step from there (as run_episode).
+    sim, station, scenario = hand_over(
+        sim, station, scenario,
+        lambda later: build_episode_diagram(
+            later, obj, ik=ik, X_WG=X_WG,
+            catch_parameters=(args.h_catch, args.h_down))).now
+    if sim.get_context().get_time() < release_time(scenario):
+        sim.AdvanceTo(release_time(scenario))
     saved = sim.get_context().Clone()
     grasp = station.controller.grasp_pose
     rows = []
@@ -141,7 +151,10 @@ def _run(args, stack) -> int:
             end_context = sim.get_context()
             outcome, _ = read_outcome(station, end_context, message)
             ending = read_ending(station, end_context, outcome)
-            row = dict(object=args.object, tag=args.tag, dx_mm=dx, dy_mm=dy,
+            row = dict(object=args.object, tag=args.tag,
+                       scenario=scenario_digest(base),
+                       h_catch=args.h_catch, h_down=args.h_down,
+                       dx_mm=dx, dy_mm=dy,
                        outcome=outcome, held=ending["held_by_contact"],
                        reason=ending["drop_reason"],
                        touching=ending["touching"], msg=message)

@@ -14,27 +14,45 @@ controller and no Python system. It ends in the episode's final state bit
 for bit (checked: `identical_final_state`), so it is the same physics,
 contact for contact: what no change to the systems around the plant can go
 below. Both are measured over the whole episode and from the cell's fork
-(the trigger: what each forked cell of a success map simulates).
+(the trigger: what each forked cell of a success map simulates). The
+episode runs at two plant steps (the throw's to the release time, the
+catch's, `catch_time_step_s`, from there: `plant_steps`), so its physics is
+replayed in two segments, each on the plant of its step. `peak_memory_gib`:
+this process's peak resident set size (an episode's, its replays' and the
+arm's inverse kinematics').
 """
 
 # regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
 # (regrasp_drake/numerics.py), so that results match across x86-64 machines.
 import regrasp_drake  # noqa: F401, I001 (first, see above)
 import argparse
+import dataclasses as dc
 import json
+import math
+import resource
 import statistics
 import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import torch
 
 from regrasp_drake.errors import InputError
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.catch_state_machine import Phase
-from regrasp_drake.station.episode import advance_to_outcome, run_episode
-from regrasp_drake.station.scenario import load_scenario
-from regrasp_drake.station.station import build_episode_diagram, initialize
+from regrasp_drake.station.episode import (
+    advance_to_outcome,
+    hand_over,
+    release_time,
+    run_episode,
+)
+from regrasp_drake.station.scenario import catch_phase_scenario, load_scenario
+from regrasp_drake.station.station import (
+    build_episode_diagram,
+    continue_with,
+    initialize,
+)
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world.objects import resolve_object
 
@@ -89,60 +107,102 @@ class CallbackTimer:
                 for name in self.seconds}
 
 
+@dc.dataclass
+class Segment:
+    """The plant's inputs over one part of an episode simulated at one plant
+    step (the throw's, then the catch's after the handover): per plant step
+    k0, k0 + 1, ..., the arm's actuation, the fingers' desired state and the
+    plant's state before the step ((steps, n) arrays), and the plant's state
+    at the segment's end."""
+    scenario: object
+    k0: int
+    u_arm: np.ndarray
+    u_hand: np.ndarray
+    x: np.ndarray
+    x_end: np.ndarray
+
+    @property
+    def dt(self) -> float:
+        return self.scenario.plant_config.time_step
+
+
 def record_plant_inputs(scenario, obj, ik, X_WG, params):
-    """Runs the episode step by step to its end and returns what its plant
-    was given and where it was: the arm's actuation, the fingers' desired
-    state and the plant's state before every plant step (each a (steps, n)
-    array), the plant's final state, and the object's final position (to
-    compare with the episode's: stepping this way changes nothing). An input
-    port evaluated between steps gives the value the plant's next step
-    reads."""
-    import numpy as np
+    """Runs the episode step by step to its end (handed over to the catch's
+    step at the release time, as run_episode does) and returns what its
+    plant was given and where it was, as Segments (one per plant step), and
+    the object's final position (to compare with the episode's: stepping
+    this way changes nothing). An input port evaluated between steps gives
+    the value the plant's next step reads."""
     episode = build_episode_diagram(scenario, obj, ik=ik, X_WG=X_WG,
                                     catch_parameters=params)
     simulator = initialize(episode, scenario)
+    later = catch_phase_scenario(scenario)
+    t_stop = release_time(scenario) if later else math.inf
+    segment, done = _record(simulator, episode, scenario, t_stop)
+    segments = [segment]
+    if later is not None and not done:
+        other = build_episode_diagram(later, obj, ik=ik, X_WG=X_WG,
+                                      catch_parameters=params)
+        simulator = continue_with(simulator, episode, other, later)
+        machine = other.controller.state_machine
+        machine.continue_at(machine.GetMyMutableContextFromRoot(
+            simulator.get_mutable_context()))
+        episode = other
+        segments.append(_record(simulator, episode, later, math.inf)[0])
+    station = episode.station
+    context = station.plant.GetMyContextFromRoot(simulator.get_context())
+    p_WO = station.plant.EvalBodyPoseInWorld(
+        context, station.object_body).translation().tolist()
+    return segments, p_WO
+
+
+def _record(simulator, episode, scenario, t_stop):
+    """Steps from the simulator's time to the episode's end or to t_stop;
+    returns (Segment, whether the episode ended)."""
     station = episode.station
     plant = station.plant
     context = plant.GetMyContextFromRoot(simulator.get_context())
-    dt = scenario.time_step_s
+    dt = scenario.plant_config.time_step
+    k0 = k = round(simulator.get_context().get_time() / dt)
     u_arm, u_hand, x = [], [], []
-    k = 0
+    done = False
     while True:
-        if k:  # AdvanceTo(0) would already take the first step's updates
+        if k > k0:  # AdvanceTo(now) would already take the first step's updates
             status = simulator.AdvanceTo(k * dt)
             if status.reason() == status.ReturnReason.kReachedTerminationCondition:
+                done = True
                 break  # the monitor ended the episode in step k - 1
+        if k * dt >= t_stop - 1e-12:
+            break
         x.append(plant.GetPositionsAndVelocities(context).copy())
         u_arm.append(plant.get_actuation_input_port(station.arm).Eval(
             context).copy())
         u_hand.append(plant.get_desired_state_input_port(station.hand).Eval(
             context).copy())
         k += 1
-    p_WO = plant.EvalBodyPoseInWorld(
-        context, station.object_body).translation().tolist()
-    return (np.array(u_arm), np.array(u_hand), np.array(x),
-            plant.GetPositionsAndVelocities(context).copy(), p_WO)
+    return Segment(scenario, k0, np.array(u_arm), np.array(u_hand),
+                   np.array(x),
+                   plant.GetPositionsAndVelocities(context).copy()), done
 
 
-def replayed_physics_wall_s(scenario, obj, u_arm, u_hand, k_start, x_start,
-                            x_end):
-    """Wall time of the episode's physics alone from plant step k_start, in
-    state x_start: the same plant (add_world), fed the recorded inputs by
-    zero-order holds (Drake's TrajectorySource, in C++), with no controller,
-    sensor, state machine or monitor. Returns (wall s, whether the plant's
-    final state equals x_end, the episode's, bit for bit): equal, it is the
-    same physics, contact for contact."""
-    import numpy as np
+def replayed_physics_wall_s(obj, segment: Segment, k_start=None):
+    """Wall time of the episode's physics alone over `segment` from its plant
+    step k_start (default its first): the same plant (add_world), fed the
+    recorded inputs by zero-order holds (Drake's TrajectorySource, in C++),
+    with no controller, sensor, state machine or monitor. Returns (wall s,
+    whether the plant's final state equals the segment's, bit for bit):
+    equal, it is the same physics, contact for contact."""
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import DiagramBuilder
     from pydrake.systems.primitives import TrajectorySource
     from pydrake.trajectories import PiecewisePolynomial
 
     from regrasp_drake.station.station import add_world
-    dt = scenario.time_step_s
-    steps = len(u_arm)
+    dt, k0 = segment.dt, segment.k0
+    k_start = k0 if k_start is None else k_start
+    steps = len(segment.u_arm)
     # Step k's input holds on [(k - 1/2) dt, (k + 1/2) dt).
-    breaks = [(k - 0.5) * dt for k in range(steps + 1)]
+    breaks = [(k0 + k - 0.5) * dt for k in range(steps + 1)]
 
     def hold(values):
         v = values.T
@@ -150,32 +210,37 @@ def replayed_physics_wall_s(scenario, obj, u_arm, u_hand, k_start, x_start,
             breaks, np.hstack([v, v[:, -1:]])))
 
     builder = DiagramBuilder()
-    plant, _, instances, _, _ = add_world(builder, scenario, obj)
-    builder.Connect(builder.AddSystem(hold(u_arm)).get_output_port(),
+    plant, _, instances, _, _ = add_world(builder, segment.scenario, obj)
+    builder.Connect(builder.AddSystem(hold(segment.u_arm)).get_output_port(),
                     plant.get_actuation_input_port(instances.arm))
-    builder.Connect(builder.AddSystem(hold(u_hand)).get_output_port(),
+    builder.Connect(builder.AddSystem(hold(segment.u_hand)).get_output_port(),
                     plant.get_desired_state_input_port(instances.hand))
     simulator = Simulator(builder.Build())
     root = simulator.get_mutable_context()
     root.SetTime(k_start * dt)
     context = plant.GetMyMutableContextFromRoot(root)
-    plant.SetPositionsAndVelocities(context, x_start)
+    plant.SetPositionsAndVelocities(context, segment.x[k_start - k0])
     simulator.Initialize()
     t0 = time.perf_counter()
-    simulator.AdvanceTo(steps * dt)
+    simulator.AdvanceTo((k0 + steps) * dt)
     wall = time.perf_counter() - t0
     return wall, bool(np.array_equal(
-        plant.GetPositionsAndVelocities(context), x_end))
+        plant.GetPositionsAndVelocities(context), segment.x_end))
 
 
 def episode_from_wall_s(scenario, obj, ik, X_WG, params, t_start,
                         timer=None) -> float:
-    """Wall time of the whole episode's simulation from t_start to its end
-    (what a forked cell of a success map runs, when t_start is the fork).
-    `timer`, a CallbackTimer already entered: it counts from t_start."""
+    """Wall time of the whole episode's simulation from t_start (after the
+    release time) to its end (what a forked cell of a success map runs,
+    when t_start is the fork). `timer`, a CallbackTimer already entered: it
+    counts from t_start."""
     episode = build_episode_diagram(scenario, obj, ik=ik, X_WG=X_WG,
                                     catch_parameters=params)
     simulator = initialize(episode, scenario)
+    simulator, episode, scenario = hand_over(
+        simulator, episode, scenario,
+        lambda later: build_episode_diagram(later, obj, ik=ik, X_WG=X_WG,
+                                            catch_parameters=params)).now
     simulator.AdvanceTo(t_start)
     if timer is not None:
         timer.reset()
@@ -246,15 +311,21 @@ def main(argv=None) -> int:
               "whose episode reaches the catch", file=sys.stderr)
         return 2
     t_fork = round(lower[0] - scenario.sensors.period_s, 6)
-    u_arm, u_hand, x, x_end, p_WO_end = record_plant_inputs(
-        scenario, obj, ik, plan.X_WG, params)
-    k_fork = round(t_fork / scenario.time_step_s)
+    segments, p_WO_end = record_plant_inputs(scenario, obj, ik, plan.X_WG,
+                                             params)
+    last = segments[-1]
+    k_fork = round(t_fork / last.dt)
+    if k_fork < last.k0:
+        print(f"episode_benchmark: error: the fork (t = {t_fork} s) comes "
+              "before the handover to the catch's step", file=sys.stderr)
+        return 2
     replay, replay_tail, tail = [], [], []
     for _ in range(args.runs):
-        replay.append(replayed_physics_wall_s(
-            scenario, obj, u_arm, u_hand, 0, x[0], x_end))
-        replay_tail.append(replayed_physics_wall_s(
-            scenario, obj, u_arm, u_hand, k_fork, x[k_fork], x_end))
+        parts = [replayed_physics_wall_s(obj, segment)
+                 for segment in segments]
+        replay.append((sum(w for w, _ in parts),
+                       all(same for _, same in parts)))
+        replay_tail.append(replayed_physics_wall_s(obj, last, k_fork))
         tail.append(episode_from_wall_s(
             scenario, obj, ik, plan.X_WG, params, t_fork))
     with CallbackTimer() as timer:
@@ -264,6 +335,10 @@ def main(argv=None) -> int:
     episode_sim_wall = statistics.median(walls) - statistics.median(builds)
     physics = statistics.median(w for w, _ in replay)
     physics_tail = statistics.median(w for w, _ in replay_tail)
+    report["plant_steps"] = [
+        {"time_step_s": segment.dt,
+         "from_s": round(segment.k0 * segment.dt, 6),
+         "steps": len(segment.u_arm)} for segment in segments]
     report["physics_replayed"] = {
         "identical_final_state": (
             p_WO_end == results[0].p_WO_final
@@ -283,6 +358,8 @@ def main(argv=None) -> int:
                 "python_s": round(sum(v["s"] for v in python_tail.values()),
                                   4)}},
     }
+    report["peak_memory_gib"] = round(
+        resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20, 3)
     print(json.dumps(report, indent=1))
     args.json.parent.mkdir(parents=True, exist_ok=True)
     args.json.write_text(json.dumps(report, indent=1) + "\n")

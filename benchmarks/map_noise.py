@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/map_noise.py
         [--objects table1-row4 …] [--stds 1e-4 1e-3 1e-2] [--seeds 2]
-        [--step-ms X] [--scenario F] [--scenario-name NAME] [--workers 2]
+        [--step-ms X (the catch's)] [--scenario F] [--scenario-name NAME] [--workers 2]
         [--out out/map_noise]
 
 The companion of map_convergence.py. That benchmark changes the plant's time step
@@ -111,8 +111,8 @@ def main(argv=None) -> int:
                         help="joint-velocity noise levels, rad/s")
     parser.add_argument("--seeds", type=int, default=2)
     parser.add_argument("--step-ms", type=float, default=None,
-                        help="the plant's time step (default: the "
-                             "scenario's)")
+                        help="the catch's plant time step, "
+                             "catch_time_step_s (default: the scenario's)")
     study.scenario_args.add(parser)  # the scenario the noise is added to
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path, default=Path("out/map_noise"),
@@ -131,9 +131,10 @@ def _run(args, stack) -> int:
     from regrasp_drake.world.objects import resolve_object
     try:
         label = study.scenario_args.resolved(args, stack)
-        if args.step_ms is None:
-            args.step_ms = round(
-                load_scenario(args.scenario).plant_config.time_step * 1e3, 9)
+        if args.step_ms is None:  # the scenario's catch step
+            scenario = load_scenario(args.scenario)
+            args.step_ms = round((scenario.catch_time_step_s
+                                  or scenario.plant_config.time_step) * 1e3, 9)
         try:
             base = study._scenario(args.step_ms, args.scenario)
         except InputError as e:

@@ -7,16 +7,20 @@ the scenario's step and at a finer one (default 4x finer), side by side.
         [--fine-step-s S | --fine-scenario-text YAML]
         [--objects NAME ...] [--workers 1] [--out out/release_convergence]
 
-The scenario: by default the shipped one (0.25 ms; --scenario-name Fast for
-1 ms; studies/palm_toss/FINDINGS.md).
+The scenario: by default the shipped one (the throw at 0.25 ms, the flight
+from the release time at its catch step, 1 ms; --scenario-name Fast for
+1 ms throughout; studies/palm_toss/FINDINGS.md). A finer --fine-step-s
+refines the throw only; to refine the flight too, give both steps:
+--fine-scenario-text '{plant_config: {time_step: 0.0000625},
+catch_time_step_s: 0.00025}'.
 
 --scenario-text overrides fields of the scenario for both settings;
 --fine-scenario-text makes the fine setting the scenario with these fields
 overridden instead of a finer step: a tighter CENIC accuracy, say
 (studies/cenic/FINDINGS.md):
 
-    --scenario-text '{plant_config: {time_step: 0}, simulator_config:
-        {integration_scheme: cenic, accuracy: 1e-3}}'
+    --scenario-text '{plant_config: {time_step: 0}, catch_time_step_s: null,
+        simulator_config: {integration_scheme: cenic, accuracy: 1e-3}}'
     --fine-scenario-text '{simulator_config: {accuracy: 1e-4}}'
 
 Per object and step: the object's state in free flight at the end of the

@@ -368,6 +368,10 @@ class FirstThrowCatchPointCheckTest(unittest.TestCase):
         self.assertAlmostEqual(check["palm_offset_mm"], 1000 * np.linalg.norm(
             planned.X_WG.translation() - watched.X_WG.translation()),
             delta=0.05)
+        # The same offset in the watched palm's frame.
+        self.assertAlmostEqual(float(np.linalg.norm(check["palm_offset_G_mm"])),
+                               check["palm_offset_mm"], delta=0.2)
+        self.assertGreaterEqual(check["palm_angle_deg"], 0.0)
         self.assertEqual(row["throws"], len(row["attempts"]))  # no watch
         self.assertIn("| table1-row2 | ", format_markdown([row]).split(
             "a check, not counted in the throws")[1])

@@ -78,7 +78,7 @@ class BadInputTest(RefusalAssertions, unittest.TestCase):
 
     def test_bad_step_refused_naming_the_flag(self):
         self.assertRefused(["--step-ms", "7"],
-                           "--step-ms 7: plant_config.time_step: got 0.007")
+                           "--step-ms 7: catch_time_step_s: got 0.007")
 
     def test_bad_seeds_and_unknown_object_refused(self):
         self.assertRefused(["--seeds", "0"], "--seeds 0: expected >= 1")

@@ -5,6 +5,8 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from regrasp_drake import grid
 from regrasp_drake.learning.learning_phase import NoCatchPoint, learn
 from regrasp_drake.learning.library import load_library
@@ -136,9 +138,17 @@ def catch_point_check(scenario, obj, ik, planned) -> dict:
                 "p_WO": [round(float(c), 4) for c in plan.catch_point.p_WO]}
 
     offset = planned.X_WG.translation() - watched.X_WG.translation()
+    # The planned palm in the watched palm's frame G: x across the object's
+    # axis, y along it (the frame of benchmarks/catch_tolerance.py's
+    # offsets), and the angle between the two palms' orientations.
+    X_GP = watched.X_WG.inverse() @ planned.X_WG
+    angle = X_GP.rotation().ToAngleAxis().angle()
     return {"planned": point(planned), "watched": point(watched),
             "palm_offset_mm": round(1000.0 * float(
                 (offset @ offset) ** 0.5), 1),
+            "palm_offset_G_mm": [round(1000.0 * float(c), 1)
+                                 for c in X_GP.translation()],
+            "palm_angle_deg": round(float(np.degrees(angle)), 2),
             "moment_ms": round(1000.0 * abs(
                 planned.catch_point.t_s - watched.catch_point.t_s), 1)}
 
@@ -164,13 +174,16 @@ def format_markdown(rows: list[dict]) -> str:
         lines += ["", "Catch point planned without watching against a watching "
                       "throw's (a check, not counted in the throws):", "",
                   "| Object | Planned t s, p_WO m | Watched t s, p_WO m "
-                  "| Palm offset mm | Moment ms |", "|---|---|---|---|---|"]
+                  "| Palm offset mm | (across, along, normal) mm "
+                  "| Palm angle deg | Moment ms |",
+                  "|---|---|---|---|---|---|---|"]
         for r in checks:
             c = r["catch_point_check"]
             lines.append(
                 f"| {r['object']} | {c['planned']['t_s']:.3f}, "
                 f"{c['planned']['p_WO']} | {c['watched']['t_s']:.3f}, "
                 f"{c['watched']['p_WO']} | {c['palm_offset_mm']:.1f} "
+                f"| {tuple(c['palm_offset_G_mm'])} | {c['palm_angle_deg']:.1f} "
                 f"| {c['moment_ms']:.1f} |")
     searches = sorted({r.get("search", "wavefront") for r in rows})
     if searches != ["wavefront"]:
