@@ -11,8 +11,9 @@ set there, as run_episode's at_release does).
 e.g. `table1-row2 0.20 -0.13` (studies/palm_toss/FINDINGS.md, "The catch").
 The scenario: by default the shipped one. --text: YAML fields over the
 scenario's for the catches only (the watched plan stays the scenario's).
-The offsets, in mm in the palm's plane (x across the object's axis, y along
-it): "all" is the 25 of a ±20 mm grid, 10 mm apart.
+The offsets, in mm in the palm's frame (x across the object's axis, y along
+it, z along the palm's normal, default 0): "all" is the 25 of a ±20 mm grid
+in the palm's plane, 10 mm apart.
 
 Prints one JSON line per offset (the scenario's digest, the cell, the
 offset, the monitor's outcome, the drop reason and the contact verdict) and
@@ -42,8 +43,10 @@ _spec.loader.exec_module(scenario_args)
 GRID_MM = range(-20, 21, 10)
 
 
-def parse_offsets(text: str) -> list[tuple[int, int]]:
-    """"all" (the ±20 mm grid) or "dx,dy;dx,dy" in whole mm."""
+def parse_offsets(text: str) -> list[tuple[int, ...]]:
+    """"all" (the ±20 mm grid in the palm's plane) or "dx,dy;dx,dy" in
+    whole mm, each with an optional third entry dz along the palm's normal
+    ("dx,dy,dz")."""
     from regrasp_drake.errors import InputError
     if text == "all":
         return [(dx, dy) for dx in GRID_MM for dy in GRID_MM]
@@ -51,9 +54,9 @@ def parse_offsets(text: str) -> list[tuple[int, int]]:
         offsets = [tuple(int(v) for v in s.split(",")) for s in text.split(";")]
     except ValueError:
         offsets = []
-    if not offsets or any(len(o) != 2 for o in offsets):
+    if not offsets or any(len(o) not in (2, 3) for o in offsets):
         raise InputError(f"--offsets: got {text!r}, expected \"all\" or "
-                         "\"dx,dy;dx,dy\" in whole mm")
+                         "\"dx,dy;dx,dy\" (or \"dx,dy,dz;...\") in whole mm")
     return offsets
 
 
@@ -140,10 +143,12 @@ def _run(args, stack) -> int:
     lines = args.out / (f"{name}_{args.tag}.jsonl" if args.tag
                         else f"{name}.jsonl")
     with open(lines, "w") as f:
-        for dx, dy in offsets:
+        for offset in offsets:
+            dx, dy, dz = (*offset, 0)[:3]
             context = saved.Clone()
             grasp.set_pose(grasp.GetMyMutableContextFromRoot(context),
-                           X_WG @ RigidTransform([dx / 1e3, dy / 1e3, 0]))
+                           X_WG @ RigidTransform([dx / 1e3, dy / 1e3,
+                                                  dz / 1e3]))
             sim.reset_context(context)
             sim.Initialize(InitializeParams(
                 suppress_initialization_events=True))
@@ -154,7 +159,7 @@ def _run(args, stack) -> int:
             row = dict(object=args.object, tag=args.tag,
                        scenario=scenario_digest(base),
                        h_catch=args.h_catch, h_down=args.h_down,
-                       dx_mm=dx, dy_mm=dy,
+                       dx_mm=dx, dy_mm=dy, dz_mm=dz,
                        outcome=outcome, held=ending["held_by_contact"],
                        reason=ending["drop_reason"],
                        touching=ending["touching"], msg=message)

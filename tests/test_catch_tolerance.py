@@ -23,7 +23,10 @@ class OffsetsTest(unittest.TestCase):
     def test_listed_offsets_and_bad_ones(self):
         self.assertEqual(catch_tolerance.parse_offsets("0,0;10,-20"),
                          [(0, 0), (10, -20)])
-        for bad in ("", "1", "1,2,3", "a,b", "1.5,0"):
+        # Along the palm's normal too.
+        self.assertEqual(catch_tolerance.parse_offsets("0,0,-20;10,0"),
+                         [(0, 0, -20), (10, 0)])
+        for bad in ("", "1", "1,2,3,4", "a,b", "1.5,0"):
             with self.subTest(bad=bad), self.assertRaises(InputError):
                 catch_tolerance.parse_offsets(bad)
 
@@ -55,7 +58,8 @@ class CatchTest(RefusalAssertions, unittest.TestCase):
         self.assertEqual(code, 0)
         lines = printed.getvalue().splitlines()
         row = json.loads(lines[0])
-        self.assertEqual((row["dx_mm"], row["dy_mm"], row["tag"]), (0, 10, "t"))
+        self.assertEqual((row["dx_mm"], row["dy_mm"], row["dz_mm"], row["tag"]),
+                         (0, 10, 0, "t"))
         self.assertIn(row["outcome"], ("caught", "dropped", "failed"))
         self.assertTrue(lines[-1].startswith("SUMMARY t table1-row2"))
         written = (self.out / "table1-row2_0.2_-0.13_t.jsonl").read_text()
