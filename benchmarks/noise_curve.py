@@ -6,6 +6,7 @@
         [--library models/results/library_table1.yaml]
         [--first-throw-library models/results/library_table1_ft.yaml]
         [--at-release-library models/results/library_table1_ar.yaml]
+        [--modes watch first-throw at-release]
         [--out out/noise_curve/noise_curve]
 
 Noise level k (a number ≥ 0) perturbs every throw (scenario throw.noise):
@@ -47,6 +48,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
+_MODES = ("watch", "first-throw", "at-release")
 RELEASE_STD_PER_LEVEL_S = 0.002
 JOINT_DV_STD_PER_LEVEL = 0.03  # rad/s
 RESULTS = Path(__file__).parents[1] / "models" / "results"
@@ -144,6 +146,9 @@ def main(argv=None) -> int:
                         default=RESULTS / "library_table1_ft.yaml")
     parser.add_argument("--at-release-library", type=Path,
                         default=RESULTS / "library_table1_ar.yaml")
+    parser.add_argument("--modes", nargs="+", choices=_MODES,
+                        default=list(_MODES),
+                        help="the modes to run (default: all three)")
     parser.add_argument("--out", type=Path,
                         default=Path("out/noise_curve/noise_curve"),
                         help="<out>.jsonl, <out>.json and <out>.png")
@@ -181,9 +186,13 @@ def _run(args, stack) -> int:
             return 2
     libraries = {"watch": args.library, "first-throw": args.first_throw_library,
                  "at-release": args.at_release_library}
+    flags = dict(zip(_MODES, ("--library", "--first-throw-library",
+                              "--at-release-library")))
+    libraries = {mode: path for mode, path in libraries.items()
+                 if mode in args.modes}
     learned = {}
-    for (mode, path), flag in zip(libraries.items(), (
-            "--library", "--first-throw-library", "--at-release-library")):
+    for mode, path in libraries.items():
+        flag = flags[mode]
         if not path.is_file():  # a typo would silently drop the mode
             print(f"noise_curve: error: {flag}: got {path}, expected an "
                   "existing regrasp library file (`regrasp-drake table1 "

@@ -54,6 +54,14 @@ class NoiseCurveTest(RefusalAssertions, unittest.TestCase):
                            "--scenario-name: got 'Nope'")
         self.assertFalse(self.out.with_suffix(".jsonl").exists())
 
+    def test_unknown_mode_refused(self):
+        with contextlib.redirect_stderr(io.StringIO()) as err, \
+                self.assertRaises(SystemExit) as exit_:
+            self.main(["--modes", "watch", "nope", "--out", str(self.out)])
+        self.assertEqual(exit_.exception.code, 2)
+        self.assertIn("--modes", err.getvalue())
+        self.assertFalse(self.out.with_suffix(".jsonl").exists())
+
     def test_noiseless_trials_catch_as_the_learning_phase_did(self):
         # table1-row5 was caught in all three modes (models/results); the
         # same parameters without noise catch again on it, one throw per
