@@ -24,7 +24,6 @@ that the paper's 48 objects' figures sit in the same JSON.
 
 import argparse
 import json
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -36,10 +35,9 @@ _REPO = Path(__file__).resolve().parents[1]
 
 
 def _training_objects() -> list[str]:
-    out = subprocess.run(
-        [sys.executable, "-m", "regrasp_drake.cli", "objects", "--json"],
-        check=True, capture_output=True, text=True, cwd=_REPO).stdout
-    return [row["name"] for row in json.loads(out) if row["set"] == "train"]
+    from regrasp_drake.world.objects import load_catalogue
+    return [name for name, obj in load_catalogue().items()
+            if obj.set == "train"]
 
 
 def _rows(out_dir: Path) -> dict:

@@ -144,9 +144,6 @@ def record_plant_inputs(scenario, obj, ik, X_WG, params):
         other = build_episode_diagram(later, obj, ik=ik, X_WG=X_WG,
                                       catch_parameters=params)
         simulator = continue_with(simulator, episode, other, later)
-        machine = other.controller.state_machine
-        machine.continue_at(machine.GetMyMutableContextFromRoot(
-            simulator.get_mutable_context()))
         episode = other
         segments.append(_record(simulator, episode, later, math.inf)[0])
     station = episode.station

@@ -24,10 +24,11 @@ import torch
 
 from regrasp_drake.learning.flight_predictor import FlightPredictor
 from regrasp_drake.learning.library import load_library
+from regrasp_drake.learning.table1 import catch_point_check
 from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.scenario import load_scenario, scenario_digest
-from regrasp_drake.throw_catch import plan_catch, watch
+from regrasp_drake.throw_catch import plan_catch
 from regrasp_drake.world.objects import resolve_object
 
 TOLERANCE_DIR = MODELS_DIR / "results" / "catch_tolerance"
@@ -35,16 +36,15 @@ GRID_MM = 10
 
 
 def predicted_offset(scenario, obj, ik, predictor):
-    """The predicted plan's palm in the watched plan's palm frame: (x, y, z)
-    in mm, the angle between the two palms (deg), and the catch moments'
-    difference (ms)."""
-    watched = plan_catch(scenario, obj, ik, watch(scenario, obj, ik))
+    """The predicted plan's palm in the watched plan's palm frame, (x, y, z)
+    mm, the angle between the two palms (deg) and the catch moments'
+    difference (ms): table1's first-throw check, against a watching
+    throw simulated there."""
     planned = plan_catch(scenario, obj, ik,
                          predictor.as_watched(obj, scenario))
-    X_GP = watched.X_WG.inverse() @ planned.X_WG
-    return (1000.0 * X_GP.translation(),
-            math.degrees(X_GP.rotation().ToAngleAxis().angle()),
-            1000.0 * (planned.catch_point.t_s - watched.catch_point.t_s))
+    check = catch_point_check(scenario, obj, ik, planned)
+    return (check["palm_offset_G_mm"], check["palm_angle_deg"],
+            check["moment_ms"])
 
 
 def caught_offsets(rows) -> dict:

@@ -359,7 +359,10 @@ class CatchStateMachine(LeafSystem):
         """Counts this machine's steps in `context` (copied from a machine
         of another plant step, at a sensor sample: station.continue_with) at
         this machine's step, so that its transitions stay on the sensors'
-        samples."""
+        samples. (On a continuous plant it makes its transitions at every
+        update: nothing to count.)"""
+        if self._dt == 0.0:
+            return
         x = context.get_discrete_state(self._state).value().copy()
         x[_TICK] = round(context.get_time() / self._dt)
         context.SetDiscreteState(self._state, x)

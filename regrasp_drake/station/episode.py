@@ -199,9 +199,6 @@ def hand_over(simulator, episode: EpisodeDiagram, scenario: Scenario,
         return Handover((simulator, episode, scenario), None, message, False)
     other = rebuild(later)
     simulator_later = continue_with(simulator, episode, other, later)
-    machine = other.controller.state_machine
-    machine.continue_at(machine.GetMyMutableContextFromRoot(
-        simulator_later.get_mutable_context()))
     return Handover((simulator_later, other, later), (simulator, episode),
                     "", True)
 

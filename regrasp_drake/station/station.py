@@ -711,6 +711,11 @@ def continue_with(simulator: Simulator, episode: EpisodeDiagram,
         for i in range(context_a.num_abstract_parameters()):
             context_b.get_mutable_abstract_parameter(i).SetFrom(
                 context_a.get_abstract_parameter(i))
+    # The catch state machine counts plant steps to find the sensors'
+    # samples: count them at the other plant's step (unchanged at the same
+    # step).
+    machine = other.controller.state_machine
+    machine.continue_at(machine.GetMyMutableContextFromRoot(context))
     # The state is already the one to go on from: no initialization events.
     target.Initialize(InitializeParams(suppress_initialization_events=True))
     return target
