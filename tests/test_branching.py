@@ -127,6 +127,13 @@ class HandoverTest(unittest.TestCase):
             load_scenario(name="Fast", text="{catch_time_step_s: 0.0005}")
         with self.assertRaisesRegex(InputError, "catch_time_step_s"):
             load_scenario(name="Fast", text="{catch_time_step_s: 0.0015}")
+        # A continuous plant (CENIC) has no step to change.
+        with self.assertRaisesRegex(InputError,
+                                    "catch_time_step_s: got 0.001, expected "
+                                    "null with a continuous plant"):
+            load_scenario(text="{plant_config: {time_step: 0}, "
+                               "simulator_config: {integration_scheme: "
+                               "cenic}}")
 
 
 class ReadEndingTest(unittest.TestCase):
