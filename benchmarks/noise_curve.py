@@ -6,7 +6,7 @@
         [--library models/results/library_table1.yaml]
         [--first-throw-library models/results/library_table1_ft.yaml]
         [--at-release-library models/results/library_table1_ar.yaml]
-        [--modes watch first-throw at-release]
+        [--modes watch first-throw at-release watch-uncorrected]
         [--out out/noise_curve/noise_curve]
 
 Noise level k (a number ≥ 0) perturbs every throw (scenario throw.noise):
@@ -19,9 +19,13 @@ noise (the regrasp library files that `regrasp-drake table1 --library …`,
 with `--first-throw` and with `--at-release`, write; those of the shipped
 network are in models/results/library_table1*.yaml). The scenario (default:
 the shipped one) is that of the libraries' learning phase. A trial:
-  watch-then-catch: a noisy watching throw, the catch planned from it, then
-      a noisy catching throw (a different perturbation) with those
-      parameters;
+  watch (watch-then-catch): a noisy watching throw, the catch planned from
+      it, then a noisy catching throw (a different perturbation) with those
+      parameters, which corrects the watched plan at its own release
+      (`throw_catch.release_correction`: the palm moved by the difference
+      between the plans from the two releases, propagated in free flight);
+  watch-uncorrected: the same without that correction (the design before
+      it; not in the default modes);
   first-throw: no watching throw: one noisy catching throw at the plan the
       first-throw learning phase stored (the predicted flight's, or, when
       its catch failed, the plan from what was seen of that throw).
@@ -48,7 +52,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
-_MODES = ("watch", "first-throw", "at-release")
+_MODES = ("watch", "first-throw", "at-release", "watch-uncorrected")
 RELEASE_STD_PER_LEVEL_S = 0.002
 JOINT_DV_STD_PER_LEVEL = 0.03  # rad/s
 RESULTS = Path(__file__).parents[1] / "models" / "results"
@@ -93,7 +97,12 @@ def _trial(task):
     from regrasp_drake.learning.library import lookup
     from regrasp_drake.planning.ik import ArmIk
     from regrasp_drake.station.episode import run_episode
-    from regrasp_drake.throw_catch import plan_catch
+    from regrasp_drake.throw_catch import (
+        ReleaseCorrection,
+        plan_catch,
+        release_correction,
+        with_release,
+    )
     from regrasp_drake.world.objects import resolve_object
     torch.set_num_threads(1)
     scenario = _scenario(level, trial, scenario_path)
@@ -109,17 +118,25 @@ def _trial(task):
         return plan_catch(scenario, obj, ik, flight).X_WG, parameters
 
     t0 = time.perf_counter()
+    correction = ReleaseCorrection()
     try:
-        if mode == "watch":
+        hook = at_release if mode == "at-release" else None
+        if mode in ("watch", "watch-uncorrected"):
             watched = run_episode(scenario, obj, ik=ik, X_WG=None,
                                   throw_number=1)
-            X_WG = plan_catch(scenario, obj, ik, watched).X_WG
+            plan = with_release(plan_catch(scenario, obj, ik, watched),
+                                scenario, watched)
+            X_WG = plan.X_WG
+            if mode == "watch":
+                hook = release_correction(scenario, obj, ik, plan, parameters,
+                                          correction)
         else:
             X_WG = entry.X_WG
         result = run_episode(
             scenario, obj, ik=ik, X_WG=X_WG, catch_parameters=parameters,
-            throw_number=2,
-            at_release=at_release if mode == "at-release" else None)
+            throw_number=2, at_release=hook)
+        if mode == "watch":
+            row["release_correction"] = correction.as_dict()
         row["outcome"] = result.outcome
         if result.message:  # why a "failed" episode failed
             row["message"] = result.message
@@ -147,8 +164,8 @@ def main(argv=None) -> int:
     parser.add_argument("--at-release-library", type=Path,
                         default=RESULTS / "library_table1_ar.yaml")
     parser.add_argument("--modes", nargs="+", choices=_MODES,
-                        default=list(_MODES),
-                        help="the modes to run (default: all three)")
+                        default=list(_MODES[:3]),
+                        help="the modes to run (default: the first three)")
     parser.add_argument("--out", type=Path,
                         default=Path("out/noise_curve/noise_curve"),
                         help="<out>.jsonl, <out>.json and <out>.png")
@@ -185,9 +202,10 @@ def _run(args, stack) -> int:
                   file=sys.stderr)
             return 2
     libraries = {"watch": args.library, "first-throw": args.first_throw_library,
-                 "at-release": args.at_release_library}
+                 "at-release": args.at_release_library,
+                 "watch-uncorrected": args.library}
     flags = dict(zip(_MODES, ("--library", "--first-throw-library",
-                              "--at-release-library")))
+                              "--at-release-library", "--library")))
     libraries = {mode: path for mode, path in libraries.items()
                  if mode in args.modes}
     learned = {}
@@ -269,7 +287,8 @@ def _plot(curves, path):
         rate = np.array([p["catch_rate"] for p in points])
         low, high = np.array([p["catch_rate_95"] for p in points]).T
         ax.errorbar([p["release_time_std_ms"] + shift for p in points], rate,
-                    yerr=[rate - low, high - rate], fmt="o-", capsize=3,
+                    yerr=[rate - low, high - rate], capsize=3,
+                    fmt="o--" if mode == "watch-uncorrected" else "o-",
                     label=f"{mode} ({objects} objects, {trials} trials a level)")
     ax.set_xlabel("release time std (ms); joint velocity std = 15 × that "
                   "(mrad/s)", fontsize=8)

@@ -3,7 +3,9 @@
 Watching throw: the arm throws and parks out of the way; the object's flight is
 logged. The offline stage finds the catch point and the palm's pose there.
 Catching throw: the same throw (identical initial conditions), then the catch
-state machine with (h_catch, h_down).
+state machine with (h_catch, h_down). At its release it compares the object's
+state with the watched one and, when release noise made them differ, moves
+the palm by what that difference changes in the plan (`release_correction`).
 """
 
 import dataclasses as dc
@@ -25,7 +27,11 @@ from regrasp_drake.planning.catch_plan import (
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
 from regrasp_drake.station.catch_state_machine import lowered_pose
-from regrasp_drake.station.episode import EpisodeResult, run_episode
+from regrasp_drake.station.episode import (
+    EpisodeResult,
+    release_time,
+    run_episode,
+)
 from regrasp_drake.station.scenario import Scenario
 from regrasp_drake.world.objects import ObjectSpec
 
@@ -36,6 +42,10 @@ class CatchPlan:
     X_WG: RigidTransform   # the palm's grasp pose
     q_grasp: list          # the arm's joint angles there, [rad]
     side: str              # "paper": the θ construction's side; or "mirrored"
+    # The watched object's state (13, as logged) at the release time, when
+    # the plan is from a simulated throw's flight (`with_release`): what a
+    # catching throw compares its own release with (`release_correction`).
+    release_state: np.ndarray | None = None
 
     def as_dict(self) -> dict:
         return {"catch_point": self.catch_point.as_dict(),
@@ -189,6 +199,88 @@ def reachable_h_down(ik: ArmIk, plan: CatchPlan, h_downs) -> list[bool]:
             for h in h_downs]
 
 
+def with_release(plan: CatchPlan, scenario: Scenario, watched) -> CatchPlan:
+    """`plan` (from `watched`, a simulated throw's flight: a watching throw
+    or `seen_flight`) with the object's state at the release time as that
+    throw logged it; `plan` unchanged when the log has no sample then."""
+    t = watched.logs.t
+    k = np.flatnonzero(np.abs(np.asarray(t) - release_time(scenario)) < 1e-9)
+    if not len(k):
+        return plan
+    return dc.replace(plan, release_state=np.array(
+        watched.logs.object_state[:, k[0]], float))
+
+
+@dc.dataclass
+class ReleaseCorrection:
+    """What `release_correction` did in a catching throw: `shift_m`, the
+    palm's move [m] (0 when the release repeated the watched one bit for
+    bit), `turn_rad`, its turn, and `how`: "same release", "shifted"
+    (watched pose moved by the difference of the two releases' plans),
+    "replanned" (the plans' palms on different sides or the shifted pose
+    out of reach: the plan from this release), or "kept" (no reachable
+    catch point from this release: the watched pose)."""
+    how: str = "none"
+    shift_m: float = 0.0
+    turn_rad: float = 0.0
+
+    def as_dict(self) -> dict:
+        return {"how": self.how, "shift_mm": round(1e3 * self.shift_m, 2),
+                "turn_deg": round(float(np.degrees(self.turn_rad)), 3)}
+
+
+def release_correction(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
+                       plan: CatchPlan, parameters, record=None):
+    """The catching throw's correction of a watched plan at its own release
+    (run_episode's `at_release`): with release noise a catching throw does
+    not repeat the watched flight, and the hand, already under way, can
+    still move. At the release time the object's state seen then and the
+    watched one (`plan.release_state`) are each propagated in free flight
+    (`flight_predictor.flight_from_release`, no simulation) and planned
+    (`plan_catch`); the watched palm moves by the difference of the two
+    plans' palms (position and turn), so the closed-form flight's own error
+    cancels. A release equal to the watched one bit for bit (every throw
+    without noise) leaves the plan untouched. `parameters` (h_catch, h_down)
+    stay; `record`, a ReleaseCorrection, is filled in."""
+    from regrasp_drake.learning.flight_predictor import flight_from_release
+    record = ReleaseCorrection() if record is None else record
+    nominal = []  # computed once, on the first release that differs
+
+    def at_release(state, t):
+        if plan.release_state is None or np.array_equal(state,
+                                                         plan.release_state):
+            record.how = "same release"
+            return None
+        try:
+            seen = plan_catch(scenario, obj, ik,
+                              flight_from_release(state, t, obj, scenario))
+        except InputError:
+            record.how = "kept"
+            return None
+        if not nominal:
+            nominal.append(plan_catch(
+                scenario, obj, ik,
+                flight_from_release(plan.release_state, t, obj, scenario)))
+        X_WG = seen.X_WG
+        record.how = "replanned"
+        if seen.side == nominal[0].side:
+            R = (seen.X_WG.rotation() @ nominal[0].X_WG.rotation().inverse()
+                 @ plan.X_WG.rotation())
+            p = (plan.X_WG.translation() + seen.X_WG.translation()
+                 - nominal[0].X_WG.translation())
+            shifted = RigidTransform(R, p)
+            if ik.solve(shifted, plan.q_grasp).success:
+                X_WG, record.how = shifted, "shifted"
+        record.shift_m = float(np.linalg.norm(
+            X_WG.translation() - plan.X_WG.translation()))
+        record.turn_rad = float(abs(
+            (X_WG.rotation() @ plan.X_WG.rotation().inverse())
+            .ToAngleAxis().angle()))
+        return X_WG, parameters
+
+    return at_release
+
+
 def catch_once(scenario: Scenario, obj: ObjectSpec, *, h_catch: float,
                h_down: float, meshcat=None) -> tuple[EpisodeResult, CatchPlan]:
     """`regrasp-drake catch`: watch, plan, and one catch attempt with
@@ -196,7 +288,11 @@ def catch_once(scenario: Scenario, obj: ObjectSpec, *, h_catch: float,
     torch.set_num_threads(1)
     ik = ArmIk(scenario.directives)
     watched = watch(scenario, obj, ik)
-    plan = plan_catch(scenario, obj, ik, watched)
-    result = run_episode(scenario, obj, ik=ik, X_WG=plan.X_WG,
-                         catch_parameters=(h_catch, h_down), meshcat=meshcat)
+    plan = with_release(plan_catch(scenario, obj, ik, watched), scenario,
+                        watched)
+    result = run_episode(
+        scenario, obj, ik=ik, X_WG=plan.X_WG,
+        catch_parameters=(h_catch, h_down), meshcat=meshcat,
+        at_release=release_correction(scenario, obj, ik, plan,
+                                      (h_catch, h_down)))
     return result, plan

@@ -31,7 +31,7 @@ COSTS_S = {
     "tests.test_catch_plan": 40.0,
     "tests.test_station": 30.0,
     "tests.test_learning": 30.0,
-    "tests.test_first_throw_tolerance": 60.0,
+    "tests.test_first_throw_tolerance": 100.0,
     "tests.test_search": 25.0,
     "tests.test_examples": 20.0,
     "tests.test_replay": 20.0,

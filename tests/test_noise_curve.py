@@ -77,6 +77,12 @@ class NoiseCurveTest(RefusalAssertions, unittest.TestCase):
         self.assertEqual(sorted(r["mode"] for r in rows),
                          ["at-release", "first-throw", "watch"])
         self.assertEqual({r["outcome"] for r in rows}, {"caught"})
+        # Without noise the catching throw's release is the watched one bit
+        # for bit: its correction changes nothing.
+        watched = next(r for r in rows if r["mode"] == "watch")
+        self.assertEqual(watched["release_correction"],
+                         {"how": "same release", "shift_mm": 0.0,
+                          "turn_deg": 0.0})
         summary = json.loads(self.out.with_suffix(".json").read_text())
         for mode in ("watch", "first-throw", "at-release"):
             point = summary["curves"][mode][0]

@@ -15,6 +15,14 @@ tries the cell most likely to catch according to the training success maps
 recreates the same initial conditions, so the flight repeats exactly and
 only the catch differs.
 
+A catching throw after a watching one corrects the watched plan at its own
+release (`throw_catch.release_correction`): the object's state then is
+compared with the one the watching throw logged; without release noise they
+are equal bit for bit and nothing changes, otherwise the palm moves by the
+difference between the plans made from the two releases in closed-form
+free flight, while the arm is on its way (the correction is reported with
+the throw's attempt).
+
 Throw 2 uses the parameters of the grid cell nearest the clamped prediction,
 not the prediction itself: the network's output is quantized to the paper's
 tolerances (0.04 m in h_catch, 0.01 m in h_down), which makes throw 2 the
@@ -87,11 +95,14 @@ from regrasp_drake.station.mlp_system import FEATURE_NAMES, CatchMlp, ParameterS
 from regrasp_drake.station.scenario import Scenario, scenario_digest
 from regrasp_drake.throw_catch import (
     CatchPlan,
+    ReleaseCorrection,
     catch_palm_poses,
     plan_catch,
     reachable_h_down,
+    release_correction,
     seen_flight,
     watch,
+    with_release,
 )
 from regrasp_drake.world.objects import ObjectSpec
 
@@ -223,14 +234,20 @@ class Attempt:
     # How a throw that did not catch ended (grid.ending: in_fingers, on_arm,
     # loose, below_palm, near_ground, failed, other), None when caught.
     ending: str | None = None
+    # How the throw corrected its watched plan at its release
+    # (throw_catch.ReleaseCorrection.as_dict), when its release differed.
+    release_correction: dict | None = None
 
     def as_dict(self) -> dict:
-        return {"throw": self.throw, "cell": list(self.cell),
-                "h_catch": self.h_catch, "h_down": self.h_down,
-                "outcome": self.outcome,
-                "sim_time_s": round(self.sim_time_s, 4),
-                "wall_s": round(self.wall_s, 3), "message": self.message,
-                "ending": self.ending}
+        d = {"throw": self.throw, "cell": list(self.cell),
+             "h_catch": self.h_catch, "h_down": self.h_down,
+             "outcome": self.outcome,
+             "sim_time_s": round(self.sim_time_s, 4),
+             "wall_s": round(self.wall_s, 3), "message": self.message,
+             "ending": self.ending}
+        if self.release_correction is not None:
+            d["release_correction"] = self.release_correction
+        return d
 
 
 @dc.dataclass
@@ -450,7 +467,9 @@ class _Phase:
         if plan is None and not self.at_release:
             watched = self.watch()
             try:
-                plan = plan_catch(self.scenario, self.obj, self.ik, watched)
+                plan = with_release(
+                    plan_catch(self.scenario, self.obj, self.ik, watched),
+                    self.scenario, watched)
             except InputError as e:
                 raise NoCatchPoint(str(e), throws=1,
                                    sim_time_s=watched.sim_time_s,
@@ -498,6 +517,15 @@ class _Phase:
             return self.plan.X_WG, cell_parameters(self.search.next_cell)
 
         cell = None if self.search is None else self.search.next_cell
+        correction = ReleaseCorrection()
+        if self.at_release:
+            at_release = plan_at_release
+        elif self.plan.release_state is not None:  # a watched plan
+            at_release = release_correction(
+                self.scenario, self.obj, self.ik, self.plan,
+                cell_parameters(cell), correction)
+        else:  # a predicted plan
+            at_release = None
         try:
             result = run_episode(
                 self.scenario, self.obj, ik=self.ik,
@@ -505,7 +533,7 @@ class _Phase:
                 catch_parameters=(cell_parameters(cell) if cell is not None
                                   else (0.0, 0.0)),
                 meshcat=self.meshcat, throw_number=self.throws + 1,
-                at_release=plan_at_release if self.at_release else None)
+                at_release=at_release)
         except InputError as e:
             if not self.at_release:
                 raise
@@ -528,7 +556,10 @@ class _Phase:
             throw=self.throws, cell=cell, h_catch=h_catch, h_down=h_down,
             outcome=result.outcome, sim_time_s=result.sim_time_s,
             wall_s=result.wall_s, message=result.message,
-            ending=None if result.caught else ending(result.summary())))
+            ending=None if result.caught else ending(result.summary()),
+            release_correction=(
+                correction.as_dict()
+                if correction.how not in ("none", "same release") else None)))
         how = "" if result.caught else f" ({self.attempts[-1].ending})"
         self.report(f"throw {self.throws}: cell {cell} (h_catch {h_catch:.2f}"
                     f" m, h_down {h_down:.2f} m): {result.outcome}{how}, "
@@ -547,7 +578,9 @@ class _Phase:
         self.predicted = False
         try:
             seen = seen_flight(self.scenario, self.obj, result)
-            plan = plan_catch(self.scenario, self.obj, self.ik, seen)
+            plan = with_release(
+                plan_catch(self.scenario, self.obj, self.ik, seen),
+                self.scenario, seen)
             self.replanned = {"after_throw": self.throws,
                               "from": "seen flight",
                               "seen_until_s": round(float(seen.logs.t[-1]), 4)}
@@ -563,7 +596,9 @@ class _Phase:
                               "from": "watching throw"}
             watched = self.watch()
             try:
-                plan = plan_catch(self.scenario, self.obj, self.ik, watched)
+                plan = with_release(
+                    plan_catch(self.scenario, self.obj, self.ik, watched),
+                    self.scenario, watched)
             except InputError as e:  # the throws made are still counted
                 self.report(str(e))
                 self.replanned["error"] = str(e)

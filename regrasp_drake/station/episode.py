@@ -87,7 +87,8 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
     the throw ends (`release_time`, before the state machine reads the grasp
     pose), with the object's state then (13: quaternion wxyz, p_WO, w_WO,
     v_WO) and the time; it returns the grasp pose X_WG and the catch
-    parameters (h_catch, h_down) that replace the ones given, or raises
+    parameters (h_catch, h_down) that replace the ones given, None (the
+    ones given stay: nothing in the episode changes), or raises
     InputError (no catch planned: the episode ends there and the error
     propagates). Requires catch_parameters and an X_WG (any: it is
     replaced)."""
@@ -206,16 +207,20 @@ def hand_over(simulator, episode: EpisodeDiagram, scenario: Scenario,
 def _plan_at_release(simulator, episode: EpisodeDiagram, scenario,
                      at_release) -> None:
     """Advances to the release time, asks at_release for the plan, and sets
-    the grasp pose and catch parameters in the context. Drake handles the
-    update events of a time at the start of the next step, so the state
-    machine's update at this time reads the new values."""
+    the grasp pose and catch parameters in the context (none, when it
+    returns None). Drake handles the update events of a time at the start
+    of the next step, so the state machine's update at this time reads the
+    new values."""
     t = release_time(scenario)
     if simulator.get_context().get_time() < t:  # not handed over there
         simulator.AdvanceTo(t)
     context = simulator.get_mutable_context()
     station, controller = episode.station, episode.controller
     state = station.Eval("object_state", context)
-    X_WG, parameters = at_release(np.asarray(state).copy(), t)
+    planned = at_release(np.asarray(state).copy(), t)
+    if planned is None:
+        return
+    X_WG, parameters = planned
     grasp = controller.grasp_pose
     grasp.set_pose(grasp.GetMyMutableContextFromRoot(context), X_WG)
     source = controller.parameters

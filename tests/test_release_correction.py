@@ -1,0 +1,99 @@
+"""The catching throw's correction at its own release
+(throw_catch.release_correction): none when the release repeats the watched
+one; under release noise, the palm moved where the plan from the release
+seen puts it."""
+
+import dataclasses as dc
+import unittest
+from types import SimpleNamespace
+
+import numpy as np
+
+from regrasp_drake.learning.flight_predictor import flight_from_release
+from regrasp_drake.station.episode import release_time, run_episode
+from regrasp_drake.station.scenario import ThrowNoise
+from regrasp_drake.throw_catch import (
+    ReleaseCorrection,
+    plan_catch,
+    release_correction,
+    watch,
+    with_release,
+)
+from tests.fixtures import Row2Fixture
+
+_CELL = (0.28, -0.12)
+
+
+class ReleaseCorrectionTest(Row2Fixture, unittest.TestCase):
+
+    @classmethod
+    def setUpClass(cls):
+        super().setUpClass()
+        watched = watch(cls.scenario, cls.obj, cls.ik)
+        cls.plan = with_release(plan_catch(cls.scenario, cls.obj, cls.ik,
+                                           watched), cls.scenario, watched)
+        k = int(np.argmin(np.abs(watched.logs.t - release_time(cls.scenario))))
+        cls.logged_at_release = watched.logs.object_state[:, k]
+
+    def _catch(self, scenario, record, seen=None):
+        """A catching throw of `scenario` corrected at its release; `seen`
+        (a list) gets the state seen then and what the correction gave."""
+        hook = release_correction(scenario, self.obj, self.ik, self.plan,
+                                  _CELL, record)
+
+        def at_release(state, t):
+            planned = hook(state, t)
+            if seen is not None:
+                seen.append((state, planned))
+            return planned
+        return run_episode(scenario, self.obj, ik=self.ik, X_WG=self.plan.X_WG,
+                           catch_parameters=_CELL, throw_number=2,
+                           at_release=at_release)
+
+    def test_the_plan_carries_the_watched_release(self):
+        np.testing.assert_array_equal(self.plan.release_state,
+                                      self.logged_at_release)
+        # A flight with no sample at the release time: nothing to compare.
+        shifted = SimpleNamespace(logs=SimpleNamespace(
+            t=np.array([0.1, 0.2]), object_state=np.zeros((13, 2))))
+        bare = dc.replace(self.plan, release_state=None)
+        self.assertIsNone(with_release(bare, self.scenario,
+                                       shifted).release_state)
+
+    def test_same_release_changes_nothing(self):
+        record = ReleaseCorrection()
+        corrected = self._catch(self.scenario, record)
+        self.assertEqual(record.how, "same release")
+        plain = run_episode(self.scenario, self.obj, ik=self.ik,
+                            X_WG=self.plan.X_WG, catch_parameters=_CELL,
+                            throw_number=2)
+        self.assertEqual(corrected.outcome, plain.outcome)
+        np.testing.assert_array_equal(corrected.logs.object_state,
+                                      plain.logs.object_state)
+
+    def test_noisy_release_moves_the_palm_to_the_plan_from_it(self):
+        noisy = dc.replace(self.scenario, throw=dc.replace(
+            self.scenario.throw, noise=ThrowNoise(0.004, 0.06, 2)))
+        record, seen = ReleaseCorrection(), []
+        result = self._catch(noisy, record, seen)
+        self.assertEqual(record.how, "shifted")
+        self.assertEqual(len(seen), 1)
+        state, (X_WG, parameters) = seen[0]
+        self.assertEqual(tuple(parameters), _CELL)
+        self.assertEqual(result.h_catch, _CELL[0])
+        # Where the plan made at this release from what was seen puts the
+        # palm: the noise moved it by centimetres, and the correction
+        # follows it to within the closed-form flight's error (< 3 mm; the
+        # watched plan is off the plan from its own release by as much).
+        at_release = plan_catch(noisy, self.obj, self.ik, flight_from_release(
+            state, release_time(noisy), self.obj, noisy)).X_WG
+        moved = at_release.translation() - self.plan.X_WG.translation()
+        self.assertGreater(np.linalg.norm(moved), 0.005)
+        self.assertAlmostEqual(record.shift_m, np.linalg.norm(moved),
+                               delta=0.003)
+        self.assertLess(np.linalg.norm(X_WG.translation()
+                                       - at_release.translation()), 0.003)
+
+
+if __name__ == "__main__":
+    unittest.main()
