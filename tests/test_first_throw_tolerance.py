@@ -35,8 +35,8 @@ from regrasp_drake.learning.library import load_library
 from regrasp_drake.learning.table1 import catch_point_check
 from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.station.scenario import load_scenario, scenario_digest
 from regrasp_drake.station.episode import release_time
+from regrasp_drake.station.scenario import load_scenario, scenario_digest
 from regrasp_drake.throw_catch import plan_catch, watch, with_release
 from regrasp_drake.world.objects import resolve_object
 

@@ -1,0 +1,84 @@
+"""The throw simulated once and gone on from (episode.ThrowCache): a watch
+and two catches with other poses and parameters give, bit for bit, the
+episodes simulated from the start."""
+
+import dataclasses as dc
+import unittest
+
+import numpy as np
+import torch
+from pydrake.math import RigidTransform
+
+from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station.episode import THROWS, Logs, run_episode
+from regrasp_drake.station.scenario import ThrowNoise, load_scenario
+from regrasp_drake.throw_catch import plan_catch
+from regrasp_drake.world.objects import resolve_object
+
+
+class ThrowCacheTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        torch.set_num_threads(1)
+        cls.scenario = load_scenario()  # handed over at the release time
+        cls.obj = resolve_object(name="table1-row2")
+        cls.ik = ArmIk()
+
+    def tearDown(self):
+        THROWS.enabled = True
+        THROWS.clear()
+
+    def episodes(self):
+        """A watch, then two catches: at the plan with one cell, and 10 mm
+        off it with another."""
+        watched = run_episode(self.scenario, self.obj, ik=self.ik, X_WG=None)
+        X_WG = plan_catch(self.scenario, self.obj, self.ik, watched).X_WG
+        moved = RigidTransform(X_WG.rotation(),
+                               X_WG.translation() + [0.0, 0.01, 0.0])
+        return [watched] + [
+            run_episode(self.scenario, self.obj, ik=self.ik, X_WG=pose,
+                        catch_parameters=cell, throw_number=2)
+            for pose, cell in ((X_WG, (0.28, -0.12)),
+                               (moved, (0.20, -0.05)))]
+
+    def test_reused_throw_gives_the_same_episodes(self):
+        THROWS.clear()
+        THROWS.enabled = False
+        fresh = self.episodes()
+        THROWS.enabled = True
+        hits = THROWS.hits
+        reused = self.episodes()
+        self.assertEqual(THROWS.hits - hits, 2)  # both catches
+        for a, b in zip(fresh, reused, strict=True):
+            with self.subTest(outcome=a.outcome):
+                self.assertEqual(a.outcome, b.outcome)
+                self.assertEqual(a.sim_time_s, b.sim_time_s)
+                self.assertEqual(a.p_WO_final, b.p_WO_final)
+                self.assertEqual((a.h_catch, a.h_down), (b.h_catch, b.h_down))
+                for field in dc.fields(Logs):
+                    np.testing.assert_array_equal(
+                        getattr(a.logs, field.name),
+                        getattr(b.logs, field.name), err_msg=field.name)
+        # The reused catch skipped the throw's simulation.
+        self.assertLess(reused[1].wall_s, fresh[1].wall_s)
+
+    def test_noisy_throws_are_their_own(self):
+        noisy = dc.replace(self.scenario, throw=dc.replace(
+            self.scenario.throw, noise=ThrowNoise(0.002, 0.03, 1)))
+        keys = {THROWS.key(noisy, self.obj, n, (0.28, -0.12), None)
+                for n in (1, 2)}
+        self.assertEqual(len(keys), 2)
+        plain = {THROWS.key(self.scenario, self.obj, n, (0.28, -0.12), None)
+                 for n in (1, 2)}
+        self.assertEqual(len(plain), 1)
+        # Not reused: the MLP's parameters, Meshcat, a plant without a
+        # handover.
+        self.assertIsNone(THROWS.key(self.scenario, self.obj, 1, None, None))
+        self.assertIsNone(THROWS.key(self.scenario, self.obj, 1, (0.2, 0.0),
+                                     object()))
+        fast = load_scenario(name="Fast")
+        self.assertIsNone(THROWS.key(fast, self.obj, 1, (0.2, 0.0), None))
+
+
+if __name__ == "__main__":
+    unittest.main()
