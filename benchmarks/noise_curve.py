@@ -93,8 +93,8 @@ def _trial(task):
     import torch
 
     from regrasp_drake.errors import InputError
-    from regrasp_drake.learning.flight_predictor import flight_from_release
     from regrasp_drake.learning.library import lookup
+    from regrasp_drake.planning.free_flight import flight_from_release
     from regrasp_drake.planning.ik import ArmIk
     from regrasp_drake.station.episode import run_episode
     from regrasp_drake.throw_catch import (

@@ -24,6 +24,7 @@ from regrasp_drake.planning.catch_plan import (
     move_torque_ratio,
     palm_poses_for,
 )
+from regrasp_drake.planning.free_flight import flight_from_release
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
 from regrasp_drake.station.catch_state_machine import lowered_pose
@@ -236,13 +237,12 @@ def release_correction(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     not repeat the watched flight, and the hand, already under way, can
     still move. At the release time the object's state seen then and the
     watched one (`plan.release_state`) are each propagated in free flight
-    (`flight_predictor.flight_from_release`, no simulation) and planned
+    (`free_flight.flight_from_release`, no simulation) and planned
     (`plan_catch`); the watched palm moves by the difference of the two
     plans' palms (position and turn), so the closed-form flight's own error
     cancels. A release equal to the watched one bit for bit (every throw
     without noise) leaves the plan untouched. `parameters` (h_catch, h_down)
     stay; `record`, a ReleaseCorrection, is filled in."""
-    from regrasp_drake.learning.flight_predictor import flight_from_release
     record = ReleaseCorrection() if record is None else record
     nominal = []  # computed once, on the first release that differs
 

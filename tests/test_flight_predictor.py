@@ -13,13 +13,13 @@ from regrasp_drake.errors import InputError
 from regrasp_drake.learning.flight_predictor import (
     FlightPredictor,
     dataset_flights,
-    flight_from_release,
     free_time_s,
     object_inputs,
     state_errors,
 )
 from regrasp_drake.learning.learning_phase import NoCatchPoint, learn
 from regrasp_drake.paths import MODELS_DIR
+from regrasp_drake.planning.free_flight import flight_from_release
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.episode import release_time, run_episode
 from regrasp_drake.station.mlp_system import load_weights

@@ -11,10 +11,13 @@ known geometry and mass properties. Inputs (standardized):
 - roll_barrier_m: how far the centre of mass must rise for the object to
   roll on the palm by a positive angle about y_O (0 … π) from the pose it
   is thrown in, [m] (box corners and an off-axis centre of mass raise it).
-The throw rolls the object across the palm: free rollers leave it spinning
-at 8–11 rad/s about y_O, objects with corners at ~5 rad/s, those whose
-centre of mass sits off the axis at 0–3 rad/s, which also changes where
-and how fast they leave the palm.
+The palm toss leaves every training object turning at 5.5–5.8 rad/s, its
+centre of mass rising at 1.63 m/s (standard deviation 6 mm/s over the 48,
+`models/dataset/plans/`); how that turn splits between x_O and z_O
+(5.2 and 0.4 rad/s on average, standard deviations 0.8 and 1.5) and where
+the object leaves the palm depend on how it rests there, which these inputs
+describe. (The finger throw before it rolled the object across the palm:
+free rollers left at 8–11 rad/s about y_O; these inputs were chosen then.)
 
 Outputs, by ridge regression fitted on the training objects' watched
 flights (`regrasp-drake dataset` stores each one's state at that moment):
@@ -50,7 +53,6 @@ Stored as JSON (numbers only): nothing is unpickled when it is loaded.
 import json
 import math
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 from pydrake.common.eigen_geometry import AngleAxis, Quaternion
@@ -59,7 +61,11 @@ from pydrake.math import RotationMatrix
 from regrasp_drake.errors import InputError, field_error
 from regrasp_drake.input_files import load_json
 from regrasp_drake.planning.catch_plan import lowest_point_along
-from regrasp_drake.planning.free_flight import propagate
+from regrasp_drake.planning.free_flight import (
+    as_watched,
+    central_inertia,
+    sampled_flight,
+)
 from regrasp_drake.station import throw
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world.objects import load_catalogue
@@ -80,12 +86,6 @@ _FREE_ROLL_M = 1e-3
 def free_time_s(scenario) -> float:
     """The moment the predicted state is for: the end of the throw, [s]."""
     return scenario.throw.settle_s + throw.end_s(scenario.throw)
-
-
-def central_inertia(obj) -> np.ndarray:
-    """The object's rotational inertia about its centre of mass, in O."""
-    M = obj.spatial_inertia()
-    return M.Shift(M.get_com()).CalcRotationalInertia().CopyToFullMatrix3()
 
 
 def roll_profile(obj, samples: int = 72):
@@ -197,13 +197,13 @@ class FlightPredictor:
     def predict_flight(self, obj, scenario, duration_s: float = 1.6):
         """The predicted flight, sampled at the sensors' period: (t, states)
         like a watched episode's logs."""
-        return _flight(self.predict_state(obj), self.t_free_s(), obj,
+        return sampled_flight(self.predict_state(obj), self.t_free_s(), obj,
                        scenario, duration_s)
 
     def as_watched(self, obj, scenario):
         """The predicted flight in the shape plan_catch reads (.logs.t,
         .logs.object_state)."""
-        return _as_watched(*self.predict_flight(obj, scenario))
+        return as_watched(*self.predict_flight(obj, scenario))
 
     # ---- files ---------------------------------------------------------
     def save(self, path) -> Path:
@@ -257,34 +257,6 @@ class FlightPredictor:
         return FlightPredictor(data)
 
 
-def _flight(state, t0, obj, scenario, duration_s: float = 1.6):
-    """The free flight from `state` at t0 [s], sampled at the sensors'
-    period for duration_s [s]: (t, states)."""
-    period = scenario.sensors.period_s
-    t = t0 + period * np.arange(int(duration_s / period) + 1)
-    states = propagate(state, t, p_OCm=obj.p_OCm,
-                       I_CmCm_O=central_inertia(obj),
-                       gravity_W=[0.0, 0.0, -scenario.gravity_m_per_s2])
-    return t, states
-
-
-def flight_from_release(state, t0, obj, scenario):
-    """The free flight from the object's state `state` (13, as logged) seen
-    at t0 [s], in the shape plan_catch reads (.logs.t, .logs.object_state).
-
-    The plant's discrete step (semi-implicit Euler: v += g·h, then p += h·v)
-    keeps the centre of mass on the parabola through its position with
-    velocity v + g·h/2, h the plant's time step: the flight is propagated from
-    that velocity (measured: the plan from it is within 0.5 mm of the plan
-    from the whole watched flight, on the five Table 1 objects)."""
-    state = np.asarray(state, float).copy()
-    state[10:13] += 0.5 * scenario.plant_config.time_step * np.array(
-        [0.0, 0.0, -scenario.gravity_m_per_s2])
-    return _as_watched(*_flight(state, t0, obj, scenario))
-
-
-def _as_watched(t, states):
-    return SimpleNamespace(logs=SimpleNamespace(t=t, object_state=states))
 
 
 def _targets(obj, state, R_ref: RotationMatrix) -> np.ndarray:
@@ -398,7 +370,7 @@ def cross_validate(objects, states, scenario, ik, *, ridge: float = 1.0,
         for obj, state in zip(objects, states):
             if obj.geometry != geometry:
                 continue
-            actual = _as_watched(*_flight(state, t0, obj, scenario))
+            actual = as_watched(*sampled_flight(state, t0, obj, scenario))
             row = {"object": obj.name, "geometry": geometry} | _compare(
                 scenario, obj, ik, predictor.as_watched(obj, scenario), actual)
             row |= state_errors(obj, predictor.predict_state(obj), state)

@@ -51,7 +51,7 @@ more than watching first, and none when the seen flight holds the plan.
 Planning at release (`at_release`, also a first-throw mode): no watching
 throw and no predicted flight; each catching throw plans its own catch when
 the throw ends and the object flies free, from the object's state seen then,
-propagated in free flight (`flight_predictor.flight_from_release`): what a
+propagated in free flight (`free_flight.flight_from_release`): what a
 robot that tracks the object leaving its hand can do. The network and the
 search start from throw 1's plan; a later throw keeps the search's cell and
 plans its pose from its own release (the same pose without release noise).
@@ -71,7 +71,6 @@ from regrasp_drake import __version__
 from regrasp_drake.errors import InputError, field_error
 from regrasp_drake.grid import ending
 from regrasp_drake.learning import library as lib
-from regrasp_drake.learning.flight_predictor import flight_from_release
 from regrasp_drake.learning.search import (
     SEARCHES,
     Search,
@@ -88,6 +87,7 @@ from regrasp_drake.planning.catch_plan import (
     CatchPoint,
     catch_moments,
 )
+from regrasp_drake.planning.free_flight import flight_from_release
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
 from regrasp_drake.station.episode import EpisodeResult, release_time, run_episode
