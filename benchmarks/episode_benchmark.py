@@ -186,13 +186,17 @@ def _record(simulator, episode, scenario, t_stop):
                    plant.GetPositionsAndVelocities(context).copy()), done
 
 
-def replayed_physics_wall_s(obj, segment: Segment, k_start=None):
+def replayed_physics_wall_s(obj, segment: Segment, k_start=None, *,
+                            k_end=None, scenario=None, configure=None):
     """Wall time of the episode's physics alone over `segment` from its plant
-    step k_start (default its first): the same plant (add_world), fed the
-    recorded inputs by zero-order holds (Drake's TrajectorySource, in C++),
-    with no controller, sensor, state machine or monitor. Returns (wall s,
-    whether the plant's final state equals the segment's, bit for bit):
-    equal, it is the same physics, contact for contact."""
+    step k_start (default its first) to k_end (default its end): the same
+    plant (add_world), fed the recorded inputs by zero-order holds (Drake's
+    TrajectorySource, in C++), with no controller, sensor, state machine or
+    monitor. Returns (wall s, whether the plant's final state equals the
+    segment's, bit for bit; False when stopped before its end): equal, it is
+    the same physics, contact for contact. For studies of what the physics
+    costs: `scenario` (default the segment's) builds the plant instead,
+    and `configure(plant, scene_graph)` changes it before it runs."""
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import DiagramBuilder
     from pydrake.systems.primitives import TrajectorySource
@@ -202,6 +206,7 @@ def replayed_physics_wall_s(obj, segment: Segment, k_start=None):
     dt, k0 = segment.dt, segment.k0
     k_start = k0 if k_start is None else k_start
     steps = len(segment.u_arm)
+    k_end = k0 + steps if k_end is None else k_end
     # Step k's input holds on [(k - 1/2) dt, (k + 1/2) dt).
     breaks = [(k0 + k - 0.5) * dt for k in range(steps + 1)]
 
@@ -211,7 +216,10 @@ def replayed_physics_wall_s(obj, segment: Segment, k_start=None):
             breaks, np.hstack([v, v[:, -1:]])))
 
     builder = DiagramBuilder()
-    plant, _, instances, _, _ = add_world(builder, segment.scenario, obj)
+    plant, scene_graph, instances, _, _ = add_world(
+        builder, scenario or segment.scenario, obj)
+    if configure is not None:
+        configure(plant, scene_graph)
     builder.Connect(builder.AddSystem(hold(segment.u_arm)).get_output_port(),
                     plant.get_actuation_input_port(instances.arm))
     builder.Connect(builder.AddSystem(hold(segment.u_hand)).get_output_port(),
@@ -223,9 +231,9 @@ def replayed_physics_wall_s(obj, segment: Segment, k_start=None):
     plant.SetPositionsAndVelocities(context, segment.x[k_start - k0])
     simulator.Initialize()
     t0 = time.perf_counter()
-    simulator.AdvanceTo((k0 + steps) * dt)
+    simulator.AdvanceTo(k_end * dt)
     wall = time.perf_counter() - t0
-    return wall, bool(np.array_equal(
+    return wall, bool(k_end == k0 + steps and np.array_equal(
         plant.GetPositionsAndVelocities(context), segment.x_end))
 
 

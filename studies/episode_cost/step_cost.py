@@ -22,54 +22,32 @@ import copy
 import json
 import statistics
 import sys
-import time
 from pathlib import Path
 
-import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parents[2] / "benchmarks"))
-from episode_benchmark import record_plant_inputs  # noqa: E402
+from episode_benchmark import (  # noqa: E402
+    record_plant_inputs,
+    replayed_physics_wall_s,
+)
 
 
 def replay(obj, segment, a, e, *, approximation=None, no_collisions=False):
-    """Wall seconds per plant step replaying `segment`'s steps a..e."""
+    """Wall seconds per plant step replaying `segment`'s steps a..e (the
+    benchmark's replay of the physics alone), the plant changed as asked."""
     from pydrake.geometry import CollisionFilterDeclaration, GeometrySet, Role
-    from pydrake.systems.analysis import Simulator
-    from pydrake.systems.framework import DiagramBuilder
-    from pydrake.systems.primitives import TrajectorySource
-    from pydrake.trajectories import PiecewisePolynomial
-
-    from regrasp_drake.station.station import add_world
     scenario = copy.deepcopy(segment.scenario)
     if approximation:
         scenario.plant_config.discrete_contact_approximation = approximation
-    dt, k0, steps = segment.dt, segment.k0, len(segment.u_arm)
-    breaks = [(k0 + k - 0.5) * dt for k in range(steps + 1)]
 
-    def hold(values):
-        v = values.T
-        return TrajectorySource(PiecewisePolynomial.ZeroOrderHold(
-            breaks, np.hstack([v, v[:, -1:]])))
-
-    builder = DiagramBuilder()
-    plant, scene_graph, instances, _, _ = add_world(builder, scenario, obj)
-    if no_collisions:
+    def no_contact(plant, scene_graph):
         ids = scene_graph.model_inspector().GetAllGeometryIds(Role.kProximity)
         scene_graph.collision_filter_manager().Apply(
             CollisionFilterDeclaration().ExcludeWithin(GeometrySet(ids)))
-    builder.Connect(builder.AddSystem(hold(segment.u_arm)).get_output_port(),
-                    plant.get_actuation_input_port(instances.arm))
-    builder.Connect(builder.AddSystem(hold(segment.u_hand)).get_output_port(),
-                    plant.get_desired_state_input_port(instances.hand))
-    simulator = Simulator(builder.Build())
-    root = simulator.get_mutable_context()
-    root.SetTime((k0 + a) * dt)
-    plant.SetPositionsAndVelocities(plant.GetMyMutableContextFromRoot(root),
-                                    segment.x[a])
-    simulator.Initialize()
-    t0 = time.perf_counter()
-    simulator.AdvanceTo((k0 + e) * dt)
-    return (time.perf_counter() - t0) / (e - a)
+    wall, _ = replayed_physics_wall_s(
+        obj, segment, segment.k0 + a, k_end=segment.k0 + e,
+        scenario=scenario, configure=no_contact if no_collisions else None)
+    return wall / (e - a)
 
 
 def main(argv=None) -> int:
