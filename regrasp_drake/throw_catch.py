@@ -216,7 +216,8 @@ def with_release(plan: CatchPlan, scenario: Scenario, watched) -> CatchPlan:
 class ReleaseCorrection:
     """What `release_correction` did in a catching throw: `shift_m`, the
     palm's move [m] (0 when the release repeated the watched one bit for
-    bit), `turn_rad`, its turn, and `how`: "same release", "shifted"
+    bit), `turn_rad`, its turn, and `how`: "same release", "no watched
+    release" (the plan has none to compare with: unchanged), "shifted"
     (watched pose moved by the difference of the two releases' plans),
     "replanned" (the plans' palms on different sides or the shifted pose
     out of reach: the plan from this release), or "kept" (no reachable
@@ -247,8 +248,10 @@ def release_correction(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     nominal = []  # computed once, on the first release that differs
 
     def at_release(state, t):
-        if plan.release_state is None or np.array_equal(state,
-                                                         plan.release_state):
+        if plan.release_state is None:  # a predicted plan: nothing to compare
+            record.how = "no watched release"
+            return None
+        if np.array_equal(state, plan.release_state):
             record.how = "same release"
             return None
         try:

@@ -559,7 +559,8 @@ class _Phase:
             ending=None if result.caught else ending(result.summary()),
             release_correction=(
                 correction.as_dict()
-                if correction.how not in ("none", "same release") else None)))
+                if correction.how in ("shifted", "replanned", "kept")
+                else None)))
         how = "" if result.caught else f" ({self.attempts[-1].ending})"
         self.report(f"throw {self.throws}: cell {cell} (h_catch {h_catch:.2f}"
                     f" m, h_down {h_down:.2f} m): {result.outcome}{how}, "
