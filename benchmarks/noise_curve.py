@@ -100,8 +100,8 @@ def _trial(task):
     from regrasp_drake.throw_catch import (
         ReleaseCorrection,
         plan_catch,
+        plan_watched,
         release_correction,
-        with_release,
     )
     from regrasp_drake.world.objects import resolve_object
     torch.set_num_threads(1)
@@ -124,8 +124,7 @@ def _trial(task):
         if mode in ("watch", "watch-uncorrected"):
             watched = run_episode(scenario, obj, ik=ik, X_WG=None,
                                   throw_number=1)
-            plan = with_release(plan_catch(scenario, obj, ik, watched),
-                                scenario, watched)
+            plan = plan_watched(scenario, obj, ik, watched)
             X_WG = plan.X_WG
             if mode == "watch":
                 hook = release_correction(scenario, obj, ik, plan, parameters,

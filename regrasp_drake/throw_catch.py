@@ -212,6 +212,15 @@ def with_release(plan: CatchPlan, scenario: Scenario, watched) -> CatchPlan:
         watched.logs.object_state[:, k[0]], float))
 
 
+def plan_watched(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
+                 watched) -> CatchPlan:
+    """`plan_catch` from a simulated throw's flight (a watching throw or
+    `seen_flight`), with that throw's release kept for the catching
+    throw's correction (`with_release`)."""
+    return with_release(plan_catch(scenario, obj, ik, watched), scenario,
+                        watched)
+
+
 @dc.dataclass
 class ReleaseCorrection:
     """What `release_correction` did in a catching throw: `shift_m`, the
@@ -291,8 +300,7 @@ def catch_once(scenario: Scenario, obj: ObjectSpec, *, h_catch: float,
     torch.set_num_threads(1)
     ik = ArmIk(scenario.directives)
     watched = watch(scenario, obj, ik)
-    plan = with_release(plan_catch(scenario, obj, ik, watched), scenario,
-                        watched)
+    plan = plan_watched(scenario, obj, ik, watched)
     result = run_episode(
         scenario, obj, ik=ik, X_WG=plan.X_WG,
         catch_parameters=(h_catch, h_down), meshcat=meshcat,

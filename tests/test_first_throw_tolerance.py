@@ -35,7 +35,7 @@ from regrasp_drake.planning.free_flight import flight_from_release
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.episode import release_time
 from regrasp_drake.station.scenario import load_scenario, scenario_digest
-from regrasp_drake.throw_catch import plan_catch, watch, with_release
+from regrasp_drake.throw_catch import plan_catch, plan_watched, watch
 from regrasp_drake.world.objects import resolve_object
 
 TOLERANCE_DIR = MODELS_DIR / "results" / "catch_tolerance"
@@ -59,8 +59,7 @@ def at_release_offset(scenario, obj, ik):
     from the state a watching throw logged then: without release noise the
     catching throw sees that very state."""
     seen = watch(scenario, obj, ik)
-    watched = with_release(plan_catch(scenario, obj, ik, seen), scenario,
-                           seen)
+    watched = plan_watched(scenario, obj, ik, seen)
     planned = plan_catch(scenario, obj, ik, flight_from_release(
         watched.release_state, release_time(scenario), obj, scenario))
     X_GP = watched.X_WG.inverse() @ planned.X_WG

@@ -15,6 +15,7 @@ from regrasp_drake.station.scenario import ThrowNoise
 from regrasp_drake.throw_catch import (
     ReleaseCorrection,
     plan_catch,
+    plan_watched,
     release_correction,
     watch,
     with_release,
@@ -30,8 +31,7 @@ class ReleaseCorrectionTest(Row2Fixture, unittest.TestCase):
     def setUpClass(cls):
         super().setUpClass()
         watched = watch(cls.scenario, cls.obj, cls.ik)
-        cls.plan = with_release(plan_catch(cls.scenario, cls.obj, cls.ik,
-                                           watched), cls.scenario, watched)
+        cls.plan = plan_watched(cls.scenario, cls.obj, cls.ik, watched)
         k = int(np.argmin(np.abs(watched.logs.t - release_time(cls.scenario))))
         cls.logged_at_release = watched.logs.object_state[:, k]
 

@@ -20,8 +20,8 @@ release (`throw_catch.release_correction`): the object's state then is
 compared with the one the watching throw logged; without release noise they
 are equal bit for bit and nothing changes, otherwise the palm moves by the
 difference between the plans made from the two releases in closed-form
-free flight, while the arm is on its way (the correction is reported with
-the throw's attempt).
+free flight, before the arm leaves for the grasp pose (the correction is
+reported with the throw's attempt).
 
 Throw 2 uses the parameters of the grid cell nearest the clamped prediction,
 not the prediction itself: the network's output is quantized to the paper's
@@ -98,11 +98,11 @@ from regrasp_drake.throw_catch import (
     ReleaseCorrection,
     catch_palm_poses,
     plan_catch,
+    plan_watched,
     reachable_h_down,
     release_correction,
     seen_flight,
     watch,
-    with_release,
 )
 from regrasp_drake.world.objects import ObjectSpec
 
@@ -467,9 +467,7 @@ class _Phase:
         if plan is None and not self.at_release:
             watched = self.watch()
             try:
-                plan = with_release(
-                    plan_catch(self.scenario, self.obj, self.ik, watched),
-                    self.scenario, watched)
+                plan = plan_watched(self.scenario, self.obj, self.ik, watched)
             except InputError as e:
                 raise NoCatchPoint(str(e), throws=1,
                                    sim_time_s=watched.sim_time_s,
@@ -579,9 +577,7 @@ class _Phase:
         self.predicted = False
         try:
             seen = seen_flight(self.scenario, self.obj, result)
-            plan = with_release(
-                plan_catch(self.scenario, self.obj, self.ik, seen),
-                self.scenario, seen)
+            plan = plan_watched(self.scenario, self.obj, self.ik, seen)
             self.replanned = {"after_throw": self.throws,
                               "from": "seen flight",
                               "seen_until_s": round(float(seen.logs.t[-1]), 4)}
@@ -597,9 +593,7 @@ class _Phase:
                               "from": "watching throw"}
             watched = self.watch()
             try:
-                plan = with_release(
-                    plan_catch(self.scenario, self.obj, self.ik, watched),
-                    self.scenario, watched)
+                plan = plan_watched(self.scenario, self.obj, self.ik, watched)
             except InputError as e:  # the throws made are still counted
                 self.report(str(e))
                 self.replanned["error"] = str(e)
