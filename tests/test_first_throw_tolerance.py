@@ -114,12 +114,6 @@ class PredictedPalmWithinToleranceTest(unittest.TestCase):
     def test_row4(self):
         self.check_within_tolerance("table1-row4")
 
-    # Not met (issue 27): the predicted palm lies 17.8 mm along the axis and
-    # 11.8 mm below the watched plan's, where the measured grid drops the
-    # object at (10, 20) mm and at -20 mm along the normal. Its first throw
-    # caught all the same. Kept as an expected failure so that the day the
-    # predictor meets it, the suite says so (an unexpected success fails).
-    @unittest.expectedFailure
     def test_row5(self):
         self.check_within_tolerance("table1-row5")
 
@@ -169,9 +163,6 @@ class AtReleasePalmWithinToleranceTest(PredictedPalmWithinToleranceTest):
     def check_within_tolerance(self, name):
         self.assert_within_tolerance(name, *at_release_offset(
             self.scenario, resolve_object(name=name), self.ik), "at-release")
-
-    def test_row5(self):  # met by this mode
-        self.check_within_tolerance("table1-row5")
 
     def test_tolerance_measured_on_this_scenario_at_the_modes_cells(self):
         at_release = load_library(

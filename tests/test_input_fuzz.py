@@ -415,12 +415,13 @@ def _load_plan(path: Path) -> None:
 def _load_flight_model(path: Path) -> None:
     """The predictor, and its prediction for an object (which `learn
     --first-throw` then plans a catch from): finite."""
-    state = FlightPredictor.load(path).predict_state(_OBJECT)
+    state = FlightPredictor.load(path).predict_state(_OBJECT, _SCENARIO)
     if not np.all(np.isfinite(state)):
         raise AssertionError(f"accepted, but predicts {state}")
 
 
 _OBJECT = load_catalogue()["table1-row2"]
+_SCENARIO = load_scenario()
 
 
 @dc.dataclass(frozen=True)

@@ -1,51 +1,39 @@
-"""The flight predictor: the paper's proposed first network (§VII), which
-makes the watching throw unnecessary.
+"""The flight predictor: the paper's proposed first model (§VII), which
+makes the watching throw unnecessary. A physics model of the separation
+with a learned residual; nothing is simulated at planning time.
 
-What it learns: the object's state just after the throw (at the end of the
-arm's throw trajectory, when the object is in free flight), from the object's
-known geometry and mass properties. Inputs (standardized):
-- Iyy: the central moment of inertia about the object's axis y_O, [kg·m²];
-- rolls_freely: 1 when the object can roll on the palm about y_O without
-  lifting its centre of mass (round about its axis, centre of mass on it),
-  else 0, [-];
-- roll_barrier_m: how far the centre of mass must rise for the object to
-  roll on the palm by a positive angle about y_O (0 … π) from the pose it
-  is thrown in, [m] (box corners and an off-axis centre of mass raise it).
-The palm toss leaves every training object turning at 5.5–5.8 rad/s, its
-centre of mass rising at 1.63 m/s (standard deviation 6 mm/s over the 48,
-`models/dataset/plans/`); how that turn splits between x_O and z_O
-(5.2 and 0.4 rad/s on average, standard deviations 0.8 and 1.5) and where
-the object leaves the palm depend on how it rests there, which these inputs
-describe. (The finger throw before it rolled the object across the palm:
-free rollers left at 8–11 rad/s about y_O; these inputs were chosen then.)
+What it predicts: the object's state at the end of the throw
+(free_time_s, the object in free flight), from the object's geometry and
+mass properties and the scenario's throw.
 
-Outputs, by ridge regression fitted on the training objects' watched
-flights (`regrasp-drake dataset` stores each one's state at that moment):
-the centre of mass's position and velocity, from the inputs above; the
-orientation (a rotation vector relative to the training objects' mean) and
-the angular velocity (in the object frame), the training objects' means.
-These choices are leave-one-geometry-out cross-validation's (`cross_validate`,
-reported by `regrasp-drake train-flight`; greedy forward selection over 24
-candidate inputs: mass, density, h_cm, r_cm, the central moments, their
-ratios and radii of gyration, the resting height and overhang, the roll
-barriers). For the orientation and the angular velocity the best inputs
-explained at most 12 % of the left-out geometries' variance and made the
-axis error at the catch moment worse (23° → 27° mean), so those are the
-training means. The previous model (the seven mass properties and their 28
-products, ridge 1e-3) erred 5× more on left-out geometries than the means.
-On the palm toss's flights (0.25 ms), the orientation and the angular
-velocity fitted on all three inputs cut the cross-validated catch point's
-error from 54 to 37 mm (mean; max 132 to 98 mm) and the catch moment's from
-15 to 9.5 ms, but erred 15° in the release orientation of Table 1's rows
-1-3 (an extrapolation), whose first throws then missed twice (throws 2, 1,
-1, 2, 1 against 1, 1, 1, 1, 1; the held-out objects 1 each against 1, 1, 2,
-1, 1, 1). These terms are kept; as the choice was made after seeing Table
-1's first throws under both, Table 1 is no longer an unbiased test of it.
+The model (rigid ride): the object lies still on the open palm at the
+toss's start pose (its rest pose, station.start_poses: the object's
+static equilibrium on the palm, which is what every throw starts from),
+rides on the palm as one rigid body with it, and leaves it as the brake's
+deceleration passes g (palm_toss.separation_s) with the palm's velocity
+and angular velocity at that instant (palm_toss.palm_twist_at, from the
+toss's designed palm motion, not the arm's simulated one); then it flies
+free (planning/free_flight.propagate: gravity and Euler's equations) to
+free_time_s. The palm toss was designed for this (no finger touches the
+object, every contact unloads at once).
 
-What it does not learn: the free flight itself, which is physics (gravity
-and Euler's equations, planning/free_flight.py), propagated from the
-predicted state. The catch point and v_catch then come from the predicted
-flight exactly as from a watched one. No simulator runs at planning time.
+The residual: the training objects' mean deviation of their watched
+states (`regrasp-drake dataset` stores each one's state at free_time_s)
+from the model, in the centre of mass's position and velocity, the
+orientation (a rotation vector in W) and the angular velocity (in W); it
+absorbs what the model leaves out (the arm's tracking of the palm's
+motion, the roll's centripetal terms at separation).
+
+How well it predicts (`regrasp-drake train-flight`'s report,
+models/flight_predictor.json.report.json, and studies/flight_predictor/):
+the rigid ride alone, no fitted number, puts the state at free_time_s of
+the 5 Table 1 and 6 held-out objects within 0.5 mm, 4 mm/s, 0.1° of axis
+and 0.05 rad/s of spin of the watched one. The model it replaces (a ridge
+regression on three object features, with the orientation and the spin
+the training means) erred 2–13 mm, 7–67 mm/s, 1–17° of axis and
+0.3 rad/s there: it did not know how an object rests on the palm (Table
+1's rows 1–3 lie with their axis tilted 14.5°) and mixed the spin of the
+objects that roll about their axis on the palm into everyone's.
 
 Stored as JSON (numbers only): nothing is unpickled when it is loaded.
 """
@@ -60,27 +48,30 @@ from pydrake.math import RotationMatrix
 
 from regrasp_drake.errors import InputError, field_error
 from regrasp_drake.input_files import load_json
-from regrasp_drake.planning.catch_plan import lowest_point_along
 from regrasp_drake.planning.free_flight import (
     as_watched,
     central_inertia,
+    propagate,
     sampled_flight,
 )
 from regrasp_drake.station import throw
+from regrasp_drake.station.palm_toss import (
+    TossDesign,
+    palm_twist_at,
+    separation_s,
+)
+from regrasp_drake.station.station import start_poses
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world.objects import load_catalogue
 
-INPUT_NAMES = ("Iyy", "rolls_freely", "roll_barrier_m")
-# The inputs each output uses (an empty tuple: the training mean).
-TERMS = {"p_Cm": ("roll_barrier_m", "Iyy"),
-         "v_Cm": ("roll_barrier_m", "rolls_freely", "Iyy"),
-         "orientation": (), "w_O": ()}
-_COLUMNS = {"p_Cm": slice(0, 3), "v_Cm": slice(3, 6),
-            "orientation": slice(6, 9), "w_O": slice(9, 12)}
-_FORMAT = "regrasp_drake.FlightPredictor/2"
-# A full turn's rise of the centre of mass below this counts as rolling
-# freely, [m].
-_FREE_ROLL_M = 1e-3
+_FORMAT = "regrasp_drake.FlightPredictor/3"
+# The residual's groups, their rows in _targets and their bounds in a saved
+# predictor (load): the shipped ones are below 1 mm, 5 mm/s, 0.02 rad and
+# 0.05 rad/s.
+RESIDUALS = {"p_Cm_m": (slice(0, 3), 0.1),
+             "v_Cm_m_per_s": (slice(3, 6), 1.0),
+             "rotation_W_rad": (slice(6, 9), 0.5),
+             "w_W_rad_per_s": (slice(9, 12), 5.0)}
 
 
 def free_time_s(scenario) -> float:
@@ -88,27 +79,30 @@ def free_time_s(scenario) -> float:
     return scenario.throw.settle_s + throw.end_s(scenario.throw)
 
 
-def roll_profile(obj, samples: int = 72):
-    """The height of the centre of mass above the object's lowest point when
-    it is turned by phi about y_O from the pose it is thrown in (axis
-    horizontal, z_O up): (phi [rad], −π … π, height [m])."""
-    phis = np.linspace(-np.pi, np.pi, samples + 1)
-    heights = []
-    for phi in phis:
-        c, s = np.cos(phi), np.sin(phi)
-        R = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-        heights.append((R @ obj.p_OCm)[2] - lowest_point_along(
-            obj, R, np.zeros(3), [0.0, 0.0, 1.0]))
-    return phis, np.array(heights)
+def _toss_design(scenario) -> TossDesign:
+    if not throw.is_toss(scenario.throw):
+        raise field_error("throw.kind", scenario.throw.kind,
+                          "'palm_toss' (the flight predictor models the "
+                          "palm toss's release)")
+    return TossDesign.of(scenario.throw.toss)
 
 
-def object_inputs(obj) -> np.ndarray:
-    """The predictor's inputs (INPUT_NAMES) for an ObjectSpec."""
-    phis, h = roll_profile(obj)
-    start = len(phis) // 2  # phi = 0
-    rolls_freely = float(h.max() - h.min() < _FREE_ROLL_M)
-    return np.array([central_inertia(obj)[1, 1], rolls_freely,
-                     float((h[start:] - h[start]).max())])
+def rigid_ride_state(scenario, obj) -> np.ndarray:
+    """The model's state of the object at free_time_s (13 rows, as logged):
+    riding rigidly on the palm from its rest pose until separation_s, then
+    in free flight."""
+    design = _toss_design(scenario)
+    X_WP0, X_WO0 = start_poses(scenario, obj)
+    t_sep = separation_s(design, scenario.gravity_m_per_s2)
+    X_WP, w_W, v_WP = palm_twist_at(design, X_WP0, t_sep)
+    X_WO = X_WP @ X_WP0.inverse() @ X_WO0
+    v_WO = v_WP + np.cross(w_W, X_WO.translation() - X_WP.translation())
+    state = np.concatenate([X_WO.rotation().ToQuaternion().wxyz(),
+                            X_WO.translation(), w_W, v_WO])
+    settle = scenario.throw.settle_s
+    return propagate(state, [settle + t_sep, free_time_s(scenario)],
+                     p_OCm=obj.p_OCm, I_CmCm_O=central_inertia(obj),
+                     gravity_W=[0.0, 0.0, -scenario.gravity_m_per_s2])[:, -1]
 
 
 def _R(quaternion_wxyz):
@@ -128,11 +122,31 @@ def _from_rotvec(r) -> RotationMatrix:
     return RotationMatrix(AngleAxis(angle, np.asarray(r) / angle))
 
 
-# Bounds of a saved predictor (load): its weights and input means within
-# ±_MAX_WEIGHT (the shipped ones within ±7, on inputs standardized to a few
-# units), its input stds above _MIN_STD (fit's floor).
-_MAX_WEIGHT = 1000.0
-_MIN_STD = 1e-12
+def _targets(obj, state, R_model: RotationMatrix) -> np.ndarray:
+    """p_Cm, v_Cm, the rotation vector of R_WO relative to R_model, and
+    w_WO, all in W."""
+    R = _R(state[:4])
+    p_OCm_W = R.matrix() @ obj.p_OCm
+    w = np.asarray(state[7:10], float)
+    return np.concatenate([state[4:7] + p_OCm_W,
+                           state[10:13] + np.cross(w, p_OCm_W),
+                           _rotvec(R @ R_model.inverse()), w])
+
+
+def _state(obj, targets, R_model: RotationMatrix) -> np.ndarray:
+    """The 13-row state of _targets' values (their inverse)."""
+    R = _from_rotvec(targets[6:9]) @ R_model
+    p_OCm_W = R.matrix() @ obj.p_OCm
+    w = targets[9:12]
+    return np.concatenate([R.ToQuaternion().wxyz(), targets[0:3] - p_OCm_W,
+                           w, targets[3:6] - np.cross(w, p_OCm_W)])
+
+
+def _residual(scenario, obj, state) -> np.ndarray:
+    """The watched state's deviation from the model's, as _targets."""
+    model = rigid_ride_state(scenario, obj)
+    R_model = _R(model[:4])
+    return (_targets(obj, state, R_model) - _targets(obj, model, R_model))
 
 
 class FlightPredictor:
@@ -140,65 +154,52 @@ class FlightPredictor:
 
     def __init__(self, data: dict):
         self._d = data
-        self._mean = np.asarray(data["input_mean"], float)
-        self._std = np.asarray(data["input_std"], float)
-        self._W = np.asarray(data["weights"], float)
-        self._R_ref = RotationMatrix(np.asarray(data["R_ref"], float))
+        self._residual = np.concatenate(
+            [np.asarray(data["residual"][k], float) for k in RESIDUALS])
 
     # ---- fitting -------------------------------------------------------
     @staticmethod
-    def fit(objects, states, *, t_free_s: float, ridge: float = 1.0
-            ) -> "FlightPredictor":
+    def fit(objects, states, *, scenario) -> "FlightPredictor":
         """objects: ObjectSpecs; states: their 13-row free-flight states at
-        t_free_s (quaternion, p_WO, w_WO, v_WO). Each output group is a
-        ridge regression (penalty `ridge` on the standardized inputs, the
-        intercept unpenalized) on its TERMS."""
-        X = np.array([object_inputs(o) for o in objects])
-        mean, std = X.mean(axis=0), X.std(axis=0)
-        std = np.where(std > 1e-12, std, 1.0)
-        R_ref = _mean_rotation([_R(s[:4]) for s in states])
-        Y = np.array([_targets(o, s, R_ref) for o, s in zip(objects, states)])
-        A = np.column_stack([np.ones(len(X)), (X - mean) / std])
-        W = np.zeros((A.shape[1], Y.shape[1]))
-        for group, names in TERMS.items():
-            used = [0] + [1 + INPUT_NAMES.index(n) for n in names]
-            penalty = ridge * np.eye(len(used))
-            penalty[0, 0] = 0.0
-            cols = _COLUMNS[group]
-            W[np.ix_(used, range(Y.shape[1])[cols])] = np.linalg.solve(
-                A[:, used].T @ A[:, used] + penalty, A[:, used].T @ Y[:, cols])
+        free_time_s(scenario) (quaternion, p_WO, w_WO, v_WO). The residual
+        is the mean of their deviations from the rigid ride."""
+        mean = np.mean([_residual(scenario, o, s)
+                        for o, s in zip(objects, states)], axis=0)
         return FlightPredictor({
-            "format": _FORMAT, "inputs": list(INPUT_NAMES),
-            "terms": {k: list(v) for k, v in TERMS.items()},
-            "t_free_s": t_free_s, "ridge": ridge,
-            "input_mean": mean.tolist(), "input_std": std.tolist(),
-            "weights": W.tolist(), "R_ref": R_ref.matrix().tolist(),
+            "format": _FORMAT, "model": "rigid ride",
+            "t_free_s": free_time_s(scenario),
+            "separation_s": separation_s(_toss_design(scenario),
+                                         scenario.gravity_m_per_s2),
+            "residual": {k: [float(x) for x in mean[rows]]
+                         for k, (rows, _) in RESIDUALS.items()},
             "trained_on": [o.name for o in objects]})
 
     # ---- prediction ----------------------------------------------------
     def t_free_s(self) -> float:
         return float(self._d["t_free_s"])
 
-    def predict_state(self, obj) -> np.ndarray:
-        """The predicted 13-row state at t_free_s."""
-        x = (object_inputs(obj) - self._mean) / self._std
-        y = np.concatenate([[1.0], x]) @ self._W
-        p_Cm, v_Cm, r, w_O = y[0:3], y[3:6], y[6:9], y[9:12]
-        R = _from_rotvec(r) @ self._R_ref
-        w = R.matrix() @ w_O
-        p_OCm_W = R.matrix() @ obj.p_OCm
-        state = np.empty(13)
-        state[:4] = R.ToQuaternion().wxyz()
-        state[4:7] = p_Cm - p_OCm_W
-        state[7:10] = w
-        state[10:13] = v_Cm - np.cross(w, p_OCm_W)
-        return state
+    def predict_state(self, obj, scenario) -> np.ndarray:
+        """The predicted 13-row state at t_free_s; InputError when the
+        predictor was fitted for another throw than the scenario's."""
+        for field, value, expected in (
+                ("t_free_s", self.t_free_s(), free_time_s(scenario)),
+                ("separation_s", self._d["separation_s"], separation_s(
+                    _toss_design(scenario), scenario.gravity_m_per_s2))):
+            if abs(value - expected) > 1e-9:
+                raise field_error(f"flight predictor: {field}", value,
+                                  f"{expected:.6g} s, the scenario's throw "
+                                  "(fit it on this scenario's data set: "
+                                  "`regrasp-drake train-flight`)")
+        model = rigid_ride_state(scenario, obj)
+        R_model = _R(model[:4])
+        return _state(obj, _targets(obj, model, R_model) + self._residual,
+                      R_model)
 
     def predict_flight(self, obj, scenario, duration_s: float = 1.6):
         """The predicted flight, sampled at the sensors' period: (t, states)
         like a watched episode's logs."""
-        return sampled_flight(self.predict_state(obj), self.t_free_s(), obj,
-                       scenario, duration_s)
+        return sampled_flight(self.predict_state(obj, scenario),
+                              self.t_free_s(), obj, scenario, duration_s)
 
     def as_watched(self, obj, scenario):
         """The predicted flight in the shape plan_catch reads (.logs.t,
@@ -226,60 +227,22 @@ class FlightPredictor:
                               isinstance(data, dict) else data,
                               f"{_FORMAT!r} (run `regrasp-drake "
                               "train-flight` again)")
-        n_in = len(INPUT_NAMES)
-        try:
-            W, mean, std, R = (np.asarray(data[k], float) for k in (
-                "weights", "input_mean", "input_std", "R_ref"))
-            t = data["t_free_s"]
-            ok = (W.shape == (1 + n_in, 12) and mean.shape == (n_in,)
-                  and std.shape == (n_in,) and R.shape == (3, 3)
-                  and list(data["inputs"]) == list(INPUT_NAMES)
-                  and data.get("terms") == {k: list(v)
-                                            for k, v in TERMS.items()}
-                  # (a null reads as NaN)
-                  and all(np.all(np.isfinite(a)) for a in (W, mean, std, R))
-                  and np.abs(W).max() <= _MAX_WEIGHT
-                  and np.abs(mean).max() <= _MAX_WEIGHT
-                  and np.all(std > _MIN_STD) and np.abs(R).max() <= 1 + 1e-6
-                  and np.abs(R @ R.T - np.eye(3)).max() < 1e-6
-                  and abs(np.linalg.det(R) - 1.0) < 1e-6
-                  and type(t) in (int, float) and 0 < t < 10)
-        except (KeyError, TypeError, ValueError, OverflowError):
-            ok = False
-        if not ok:
-            raise InputError(f"{path}: weights: malformed (expected a "
-                             f"{1 + n_in}×12 matrix over the inputs "
-                             f"{', '.join(INPUT_NAMES)} fitted with this "
-                             "version's terms, and the inputs' "
-                             "normalization, all finite and within "
-                             f"±{_MAX_WEIGHT:g} (std > {_MIN_STD:g}), R_ref "
-                             "a rotation and t_free_s in (0, 10) s)")
+        for key in ("t_free_s", "separation_s"):
+            t = data.get(key)
+            if type(t) not in (int, float) or not 0 < t < 10:
+                raise field_error(f"{path}: {key}", t, "a time in (0, 10) s")
+        residual = data.get("residual")
+        if not isinstance(residual, dict) or set(residual) != set(RESIDUALS):
+            raise field_error(f"{path}: residual", residual,
+                              f"an object with the keys {list(RESIDUALS)}")
+        for key, (_, bound) in RESIDUALS.items():
+            v = residual[key]
+            if not (isinstance(v, list) and len(v) == 3
+                    and all(type(x) in (int, float) and math.isfinite(x)
+                            and abs(x) <= bound for x in v)):
+                raise field_error(f"{path}: residual.{key}", v,
+                                  f"3 finite numbers within ±{bound:g}")
         return FlightPredictor(data)
-
-
-
-
-def _targets(obj, state, R_ref: RotationMatrix) -> np.ndarray:
-    """p_Cm, v_Cm (W), the rotation vector of R_WO relative to R_ref, and
-    w_WO in O."""
-    R = _R(state[:4])
-    p_OCm_W = R.matrix() @ obj.p_OCm
-    w = state[7:10]
-    p_Cm = state[4:7] + p_OCm_W
-    v_Cm = state[10:13] + np.cross(w, p_OCm_W)
-    r = _rotvec(R @ R_ref.inverse())
-    return np.concatenate([p_Cm, v_Cm, r, R.matrix().T @ w])
-
-
-def _mean_rotation(rotations) -> RotationMatrix:
-    """The chordal mean of rotations (projected mean of their matrices)."""
-    M = np.mean([R.matrix() for R in rotations], axis=0)
-    u, _, vt = np.linalg.svd(M)
-    R = u @ vt
-    if np.linalg.det(R) < 0:
-        u[:, -1] *= -1
-        R = u @ vt
-    return RotationMatrix(R)
 
 
 def flight_errors(predicted_plan, actual_plan, predicted_flight=None,
@@ -352,7 +315,7 @@ def _compare(scenario, obj, ik, predicted, actual) -> dict:
     return row
 
 
-def cross_validate(objects, states, scenario, ik, *, ridge: float = 1.0,
+def cross_validate(objects, states, scenario, ik, *,
                    progress=None) -> list[dict]:
     """Leave-one-geometry-out cross-validation: for each training geometry,
     the predictor fitted on the other geometries' objects plans the catch
@@ -366,14 +329,15 @@ def cross_validate(objects, states, scenario, ik, *, ridge: float = 1.0,
                  if o.geometry != geometry]
         predictor = FlightPredictor.fit([o for o, _ in train],
                                         [s for _, s in train],
-                                        t_free_s=t0, ridge=ridge)
+                                        scenario=scenario)
         for obj, state in zip(objects, states):
             if obj.geometry != geometry:
                 continue
             actual = as_watched(*sampled_flight(state, t0, obj, scenario))
             row = {"object": obj.name, "geometry": geometry} | _compare(
                 scenario, obj, ik, predictor.as_watched(obj, scenario), actual)
-            row |= state_errors(obj, predictor.predict_state(obj), state)
+            row |= state_errors(obj, predictor.predict_state(obj, scenario),
+                                state)
             rows.append(row)
             if progress is not None:
                 print(f"cv {obj.name}: {row}", file=progress, flush=True)
@@ -440,7 +404,7 @@ def dataset_flights(data_dir) -> tuple[list, list]:
 
 
 def train_from_dataset(data_dir, scenario, out, *, ik, eval_objects=(),
-                       ridge: float = 1.0, progress=None) -> dict:
+                       progress=None) -> dict:
     """Fits the predictor on the data set's free-flight states (every
     training object's), writes it to `out`, and reports its
     leave-one-geometry-out cross-validation and its errors on
@@ -448,17 +412,16 @@ def train_from_dataset(data_dir, scenario, out, *, ik, eval_objects=(),
     its true flight: catch position (mm), v_catch (m/s), catch time (ms),
     axis (degrees), and the offset and axis at the actual catch moment;
     and, for both, the predicted state after the throw against the actual
-    one (state_errors, the release_* fields). Also writes the report
+    one (state_errors, the release_* fields; for the evaluation objects
+    also the rigid ride's alone, without the residual). Also writes the report
     (report_path: <out>.report.json)."""
     objects, states = dataset_flights(data_dir)
     if len(objects) < 10:
         raise InputError(f"{data_dir}: {len(objects)} flights, expected at "
                          "least 10 to fit the flight predictor")
-    predictor = FlightPredictor.fit(objects, states,
-                                    t_free_s=free_time_s(scenario),
-                                    ridge=ridge)
+    predictor = FlightPredictor.fit(objects, states, scenario=scenario)
     predictor.save(out)
-    cv_rows = cross_validate(objects, states, scenario, ik, ridge=ridge,
+    cv_rows = cross_validate(objects, states, scenario, ik,
                              progress=progress)
     rows = []
     t0 = free_time_s(scenario)
@@ -468,14 +431,16 @@ def train_from_dataset(data_dir, scenario, out, *, ik, eval_objects=(),
             scenario, obj, ik, predictor.as_watched(obj, scenario), watched)
         k = int(np.argmin(np.abs(watched.logs.t - t0)))
         if abs(watched.logs.t[k] - t0) < 1e-9:  # a flight logged then
-            row |= state_errors(obj, predictor.predict_state(obj),
-                                watched.logs.object_state[:, k])
+            actual = watched.logs.object_state[:, k]
+            row |= state_errors(obj, predictor.predict_state(obj, scenario),
+                                actual)
+            row["rigid_ride_only"] = state_errors(
+                obj, rigid_ride_state(scenario, obj), actual)
         rows.append(row)
         if progress is not None:
             print(f"{obj.name}: {row}", file=progress, flush=True)
-    report = {"trained_on": len(objects), "ridge": ridge,
-              "inputs": list(INPUT_NAMES),
-              "terms": {k: list(v) for k, v in TERMS.items()},
+    report = {"trained_on": len(objects), "model": "rigid ride",
+              "residual": predictor._d["residual"],
               "cross_validation": {"summary": summarize(cv_rows),
                                    "objects": cv_rows},
               "evaluation": {"summary": summarize(rows), "objects": rows}}

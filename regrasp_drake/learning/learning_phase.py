@@ -453,10 +453,9 @@ class _Phase:
         at release, nothing yet."""
         plan = None
         if flight_predictor is not None:
+            predicted = flight_predictor.as_watched(self.obj, self.scenario)
             try:
-                plan = plan_catch(self.scenario, self.obj, self.ik,
-                                  flight_predictor.as_watched(self.obj,
-                                                              self.scenario))
+                plan = plan_catch(self.scenario, self.obj, self.ik, predicted)
                 self.report("no watching throw: the catch is planned from "
                             "the predicted flight")
                 self.predicted = True

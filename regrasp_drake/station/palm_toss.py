@@ -277,6 +277,40 @@ def palm_pose_at(design: TossDesign, X_WP0: RigidTransform,
             p_P0P + [0.0, design.sideways_offset(t), 0.0]) + [0.0, 0.0, z])
 
 
+def separation_s(design: TossDesign, gravity_m_per_s2: float) -> float:
+    """When an object riding on the palm leaves it: the throw time at which
+    the brake's deceleration, rising as a smoothstep over T_r, reaches g,
+    [s] (the contacts then unload together; the roll's centripetal terms,
+    a few % of g at the palm's surface, are left out)."""
+    ratio = gravity_m_per_s2 / design.brake_deceleration
+    if not 0.0 < ratio < 1.0:
+        raise ValueError(f"throw.toss.brake_deceleration_m_per_s2: "
+                         f"{design.brake_deceleration!r}, expected more than "
+                         f"g = {gravity_m_per_s2} m/s² for the object to "
+                         "leave the palm")
+    lo, hi = 0.0, 1.0
+    for _ in range(60):
+        mid = (lo + hi) / 2
+        lo, hi = (mid, hi) if _smoothstep(mid)[0] < ratio else (lo, mid)
+    return design.brake_start_s + design.brake_ramp_s * (lo + hi) / 2
+
+
+# The time step of palm_twist_at's central differences, [s].
+_TWIST_DT_S = 1e-6
+
+
+def palm_twist_at(design: TossDesign, X_WP0: RigidTransform, t: float):
+    """(X_WP, w_WP, v_WP): the palm's pose at throw time t, its angular
+    velocity and the velocity of its origin, both in W, [rad/s, m/s]
+    (central differences of palm_pose_at over ±_TWIST_DT_S)."""
+    before = palm_pose_at(design, X_WP0, t - _TWIST_DT_S)
+    after = palm_pose_at(design, X_WP0, t + _TWIST_DT_S)
+    turn = (after.rotation() @ before.rotation().inverse()).ToAngleAxis()
+    return (palm_pose_at(design, X_WP0, t),
+            turn.axis() * turn.angle() / (2 * _TWIST_DT_S),
+            (after.translation() - before.translation()) / (2 * _TWIST_DT_S))
+
+
 @functools.lru_cache(maxsize=16)
 def _trajectory(design: TossDesign, ik) -> PiecewisePolynomial:
     X_WP0 = ik.palm_pose(np.array(design.start_q))

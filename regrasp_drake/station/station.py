@@ -531,6 +531,30 @@ def _bumper_geometry(plant, scene_graph, hand, palm: str = "box"):
                        f"palm {palm!r}")
 
 
+def start_poses(scenario: Scenario,
+                obj: ObjectSpec) -> tuple[RigidTransform, RigidTransform]:
+    """(X_WP, X_WO) before the throw: the hand's palm_surface frame at the
+    throw's start pose and the object lying in the open palm (as every
+    episode starts; for the palm toss, its rest pose). Computed once per
+    scenario and object in a process."""
+    key = (scenario_digest(scenario), pickle.dumps(obj))
+    if key not in _START_POSES:
+        builder = DiagramBuilder()
+        plant, _, instances, _, _ = add_world(builder, scenario, obj)
+        context = plant.CreateDefaultContext()
+        plant.SetPositions(context, instances.arm,
+                           throw.start_q(scenario.throw))
+        plant.SetPositions(context, instances.hand, robot.HAND_OPEN)
+        X_WP = plant.GetFrameByName(
+            "palm_surface", instances.hand).CalcPoseInWorld(context)
+        _START_POSES[key] = (X_WP, _initial_object_pose(plant, instances,
+                                                        obj, scenario))
+    return _START_POSES[key]
+
+
+_START_POSES: dict = {}
+
+
 def _initial_object_pose(plant, instances, obj, scenario) -> RigidTransform:
     """The object lies in the palm, its symmetry axis along the palm's y (the
     knuckle line), its lowest point 1 mm above the bumper, its centre of mass
