@@ -6,7 +6,9 @@
         [--library models/results/library_table1.yaml]
         [--first-throw-library models/results/library_table1_ft.yaml]
         [--at-release-library models/results/library_table1_ar.yaml]
-        [--modes watch first-throw at-release watch-uncorrected]
+        [--modes watch first-throw at-release watch-uncorrected
+                 first-throw-uncorrected]
+        [--flight-model models/flight_predictor.json]
         [--out out/noise_curve/noise_curve]
 
 Noise level k (a number ≥ 0) perturbs every throw (scenario throw.noise):
@@ -26,9 +28,14 @@ the shipped one) is that of the libraries' learning phase. A trial:
       between the plans from the two releases, propagated in free flight);
   watch-uncorrected: the same without that correction (the design before
       it; not in the default modes);
-  first-throw: no watching throw: one noisy catching throw at the plan the
-      first-throw learning phase stored (the predicted flight's, or, when
-      its catch failed, the plan from what was seen of that throw).
+  first-throw: no watching throw: one noisy catching throw at the plan of
+      the predicted flight (--flight-model, from the object's features),
+      with the cell the first-throw learning phase found (after a replan,
+      too: the cell is what the phase learned, the plan is the predicted
+      one), which corrects the predicted plan at its own release as the
+      watching mode does (the reference is the predictor's state then);
+  first-throw-uncorrected: the same without that correction (the design
+      before it; not in the default modes).
   at-release: no watching throw: one noisy catching throw whose catch is
       planned when it releases the object, from the object's state seen
       then (`learn --at-release`), with the parameters that mode learned.
@@ -52,7 +59,8 @@ import time
 from collections import Counter
 from pathlib import Path
 
-_MODES = ("watch", "first-throw", "at-release", "watch-uncorrected")
+_MODES = ("watch", "first-throw", "at-release", "watch-uncorrected",
+          "first-throw-uncorrected")
 RELEASE_STD_PER_LEVEL_S = 0.002
 JOINT_DV_STD_PER_LEVEL = 0.03  # rad/s
 RESULTS = Path(__file__).parents[1] / "models" / "results"
@@ -89,10 +97,11 @@ def _key(row) -> tuple:
 
 
 def _trial(task):
-    mode, name, level, trial, library, scenario_path = task
+    mode, name, level, trial, library, scenario_path, flight_model = task
     import torch
 
     from regrasp_drake.errors import InputError
+    from regrasp_drake.learning.flight_predictor import FlightPredictor
     from regrasp_drake.learning.library import lookup
     from regrasp_drake.planning.free_flight import flight_from_release
     from regrasp_drake.planning.ik import ArmIk
@@ -129,12 +138,18 @@ def _trial(task):
             if mode == "watch":
                 hook = release_correction(scenario, obj, ik, plan, parameters,
                                           correction)
+        elif mode.startswith("first-throw"):
+            plan = FlightPredictor.load(flight_model).plan(obj, scenario, ik)
+            X_WG = plan.X_WG
+            if mode == "first-throw":
+                hook = release_correction(scenario, obj, ik, plan, parameters,
+                                          correction)
         else:
             X_WG = entry.X_WG
         result = run_episode(
             scenario, obj, ik=ik, X_WG=X_WG, catch_parameters=parameters,
             throw_number=2, at_release=hook)
-        if mode == "watch":
+        if mode in ("watch", "first-throw"):
             row["release_correction"] = correction.as_dict()
         row["outcome"] = result.outcome
         if result.message:  # why a "failed" episode failed
@@ -162,6 +177,9 @@ def main(argv=None) -> int:
                         default=RESULTS / "library_table1_ft.yaml")
     parser.add_argument("--at-release-library", type=Path,
                         default=RESULTS / "library_table1_ar.yaml")
+    parser.add_argument("--flight-model", type=Path,
+                        default=RESULTS.parent / "flight_predictor.json",
+                        help="the first-throw modes' flight predictor")
     parser.add_argument("--modes", nargs="+", choices=_MODES,
                         default=list(_MODES[:3]),
                         help="the modes to run (default: the first three)")
@@ -202,9 +220,11 @@ def _run(args, stack) -> int:
             return 2
     libraries = {"watch": args.library, "first-throw": args.first_throw_library,
                  "at-release": args.at_release_library,
-                 "watch-uncorrected": args.library}
+                 "watch-uncorrected": args.library,
+                 "first-throw-uncorrected": args.first_throw_library}
     flags = dict(zip(_MODES, ("--library", "--first-throw-library",
-                              "--at-release-library", "--library")))
+                              "--at-release-library", "--library",
+                              "--first-throw-library")))
     libraries = {mode: path for mode, path in libraries.items()
                  if mode in args.modes}
     learned = {}
@@ -232,7 +252,15 @@ def _run(args, stack) -> int:
     lines.parent.mkdir(parents=True, exist_ok=True)
     done = read_rows(lines, key=_key)
     scenario = args.scenario and str(args.scenario)
-    tasks = [(mode, name, level, trial, str(libraries[mode]), scenario)
+    if any(m.startswith("first-throw") for m in libraries):
+        from regrasp_drake.learning.flight_predictor import FlightPredictor
+        try:
+            FlightPredictor.load(args.flight_model)
+        except InputError as e:
+            print(f"noise_curve: error: --flight-model: {e}", file=sys.stderr)
+            return 2
+    tasks = [(mode, name, level, trial, str(libraries[mode]), scenario,
+              str(args.flight_model))
              for mode in libraries for level in args.levels
              for name in args.objects for trial in range(args.trials)
              if name in learned[mode]
@@ -287,7 +315,7 @@ def _plot(curves, path):
         low, high = np.array([p["catch_rate_95"] for p in points]).T
         ax.errorbar([p["release_time_std_ms"] + shift for p in points], rate,
                     yerr=[rate - low, high - rate], capsize=3,
-                    fmt="o--" if mode == "watch-uncorrected" else "o-",
+                    fmt="o--" if mode.endswith("-uncorrected") else "o-",
                     label=f"{mode} ({objects} objects, {trials} trials a level)")
     ax.set_xlabel("release time std (ms); joint velocity std = 15 × that "
                   "(mrad/s)", fontsize=8)

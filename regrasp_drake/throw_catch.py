@@ -242,11 +242,13 @@ class ReleaseCorrection:
 
 def release_correction(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
                        plan: CatchPlan, parameters, record=None):
-    """The catching throw's correction of a watched plan at its own release
-    (run_episode's `at_release`): with release noise a catching throw does
-    not repeat the watched flight, and the hand, already under way, can
-    still move. At the release time the object's state seen then and the
-    watched one (`plan.release_state`) are each propagated in free flight
+    """The catching throw's correction of a watched or predicted plan at its
+    own release (run_episode's `at_release`): with release noise a catching
+    throw does not repeat the watched flight, a predicted flight is not the
+    actual one, and the hand, already under way, can still move. At the
+    release time the object's state seen then and the one the plan was made
+    from (`plan.release_state`: the watching throw's, or the flight
+    predictor's) are each propagated in free flight
     (`free_flight.flight_from_release`, no simulation) and planned
     (`plan_catch`); the watched palm moves by the difference of the two
     plans' palms (position and turn), so the closed-form flight's own error
@@ -257,7 +259,7 @@ def release_correction(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     nominal = []  # computed once, on the first release that differs
 
     def at_release(state, t):
-        if plan.release_state is None:  # a predicted plan: nothing to compare
+        if plan.release_state is None:  # nothing to compare with
             record.how = "no watched release"
             return None
         if np.array_equal(state, plan.release_state):

@@ -38,6 +38,7 @@ objects that roll about their axis on the palm into everyone's.
 Stored as JSON (numbers only): nothing is unpickled when it is loaded.
 """
 
+import dataclasses as dc
 import json
 import math
 from pathlib import Path
@@ -205,6 +206,16 @@ class FlightPredictor:
         """The predicted flight in the shape plan_catch reads (.logs.t,
         .logs.object_state)."""
         return as_watched(*self.predict_flight(obj, scenario))
+
+    def plan(self, obj, scenario, ik):
+        """plan_catch on the predicted flight, with the predicted state at
+        the release kept as the plan's release_state: the catching throw
+        compares its own release with it and corrects the palm
+        (`throw_catch.release_correction`). InputError when the predicted
+        flight has no reachable catch point."""
+        plan = plan_catch(scenario, obj, ik, self.as_watched(obj, scenario))
+        return dc.replace(plan, release_state=self.predict_state(obj,
+                                                                 scenario))
 
     # ---- files ---------------------------------------------------------
     def save(self, path) -> Path:

@@ -15,13 +15,14 @@ tries the cell most likely to catch according to the training success maps
 recreates the same initial conditions, so the flight repeats exactly and
 only the catch differs.
 
-A catching throw after a watching one corrects the watched plan at its own
-release (`throw_catch.release_correction`): the object's state then is
-compared with the one the watching throw logged; without release noise they
-are equal bit for bit and nothing changes, otherwise the palm moves by the
-difference between the plans made from the two releases in closed-form
-free flight, before the arm leaves for the grasp pose (the correction is
-reported with the throw's attempt).
+A catching throw corrects its plan at its own release
+(`throw_catch.release_correction`): the object's state then is compared
+with the one the plan was made from, the one the watching throw logged or,
+in first-throw mode, the flight predictor's; when they are equal bit for
+bit (a watched plan, no release noise) nothing changes, otherwise the palm
+moves by the difference between the plans made from the two releases in
+closed-form free flight, before the arm leaves for the grasp pose (the
+correction is reported with the throw's attempt). The cell is not changed.
 
 Throw 2 uses the parameters of the grid cell nearest the clamped prediction,
 not the prediction itself: the network's output is quantized to the paper's
@@ -453,9 +454,11 @@ class _Phase:
         at release, nothing yet."""
         plan = None
         if flight_predictor is not None:
-            predicted = flight_predictor.as_watched(self.obj, self.scenario)
+            # (a predictor fitted for another throw is refused here, not
+            # taken for a flight without a catch point)
+            flight_predictor.predict_state(self.obj, self.scenario)
             try:
-                plan = plan_catch(self.scenario, self.obj, self.ik, predicted)
+                plan = flight_predictor.plan(self.obj, self.scenario, self.ik)
                 self.report("no watching throw: the catch is planned from "
                             "the predicted flight")
                 self.predicted = True
@@ -517,12 +520,10 @@ class _Phase:
         correction = ReleaseCorrection()
         if self.at_release:
             at_release = plan_at_release
-        elif self.plan.release_state is not None:  # a watched plan
+        else:  # a watched or predicted plan, corrected at the release
             at_release = release_correction(
                 self.scenario, self.obj, self.ik, self.plan,
                 cell_parameters(cell), correction)
-        else:  # a predicted plan
-            at_release = None
         try:
             result = run_episode(
                 self.scenario, self.obj, ik=self.ik,
