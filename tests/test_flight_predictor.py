@@ -106,7 +106,7 @@ class PredictorTest(unittest.TestCase):
             states.append(state)
         predictor = FlightPredictor.fit(objects, states,
                                         scenario=self.scenario)
-        np.testing.assert_allclose(predictor._d["residual"]["p_Cm_m"], shift,
+        np.testing.assert_allclose(predictor.residual()["p_Cm_m"], shift,
                                    atol=1e-12)
         obj = self.catalogue["table1-row1"]
         np.testing.assert_allclose(

@@ -25,7 +25,7 @@ absorbs what the model leaves out (the arm's tracking of the palm's
 motion, the roll's centripetal terms at separation).
 
 How well it predicts (`regrasp-drake train-flight`'s report,
-models/flight_predictor.json.report.json, and studies/flight_predictor/):
+models/flight_predictor.json.report.json; docs/results.md, "First throw"):
 the rigid ride alone, no fitted number, puts the state at free_time_s of
 the 5 Table 1 and 6 held-out objects within 0.5 mm, 4 mm/s, 0.1° of axis
 and 0.05 rad/s of spin of the watched one. The model it replaces (a ridge
@@ -178,6 +178,10 @@ class FlightPredictor:
     # ---- prediction ----------------------------------------------------
     def t_free_s(self) -> float:
         return float(self._d["t_free_s"])
+
+    def residual(self) -> dict:
+        """The fitted residual, by group (RESIDUALS' keys): 3 numbers each."""
+        return {k: list(v) for k, v in self._d["residual"].items()}
 
     def predict_state(self, obj, scenario) -> np.ndarray:
         """The predicted 13-row state at t_free_s; InputError when the
@@ -451,7 +455,7 @@ def train_from_dataset(data_dir, scenario, out, *, ik, eval_objects=(),
         if progress is not None:
             print(f"{obj.name}: {row}", file=progress, flush=True)
     report = {"trained_on": len(objects), "model": "rigid ride",
-              "residual": predictor._d["residual"],
+              "residual": predictor.residual(),
               "cross_validation": {"summary": summarize(cv_rows),
                                    "objects": cv_rows},
               "evaluation": {"summary": summarize(rows), "objects": rows}}

@@ -280,8 +280,10 @@ def palm_pose_at(design: TossDesign, X_WP0: RigidTransform,
 def separation_s(design: TossDesign, gravity_m_per_s2: float) -> float:
     """When an object riding on the palm leaves it: the throw time at which
     the brake's deceleration, rising as a smoothstep over T_r, reaches g,
-    [s] (the contacts then unload together; the roll's centripetal terms,
-    a few % of g at the palm's surface, are left out)."""
+    [s] (the contacts then unload together; the roll's centripetal
+    acceleration, Ω² times the centre of mass's distance from the roll's
+    axis, up to about 6 % of g for the objects lying on the palm, is left
+    out)."""
     ratio = gravity_m_per_s2 / design.brake_deceleration
     if not 0.0 < ratio < 1.0:
         raise ValueError(f"throw.toss.brake_deceleration_m_per_s2: "
