@@ -8,7 +8,10 @@ mass properties and the scenario's throw.
 
 The model (rigid ride): the object lies still on the open palm at the
 toss's start pose (its rest pose, station.start_poses: the object's
-static equilibrium on the palm, which is what every throw starts from),
+static equilibrium on the palm, found by the same relaxation every
+episode starts from; the throw's initial condition, which on a robot is
+the object's pose in the open hand before the throw, seen, not
+predicted),
 rides on the palm as one rigid body with it, and leaves it as the brake's
 deceleration passes g (palm_toss.separation_s) with the palm's velocity
 and angular velocity at that instant (palm_toss.palm_twist_at, from the
