@@ -226,11 +226,11 @@ class ReleaseCorrection:
     """What `release_correction` did in a catching throw: `shift_m`, the
     palm's move [m] (0 when the release repeated the watched one bit for
     bit), `turn_rad`, its turn, and `how`: "same release", "no watched
-    release" (the plan has none to compare with: unchanged), "shifted"
-    (watched pose moved by the difference of the two releases' plans),
-    "replanned" (the plans' palms on different sides or the shifted pose
-    out of reach: the plan from this release), or "kept" (no reachable
-    catch point from this release: the watched pose)."""
+    release" (the plan has no release state to compare with: unchanged),
+    "shifted" (the plan's pose moved by the difference of the two
+    releases' plans), "replanned" (the plans' palms on different sides or
+    the shifted pose out of reach: the plan from this release), or "kept"
+    (no reachable catch point from this release: the plan's pose)."""
     how: str = "none"
     shift_m: float = 0.0
     turn_rad: float = 0.0

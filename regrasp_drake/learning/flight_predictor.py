@@ -41,7 +41,6 @@ objects that roll about their axis on the palm into everyone's.
 Stored as JSON (numbers only): nothing is unpickled when it is loaded.
 """
 
-import dataclasses as dc
 import json
 import math
 from pathlib import Path
@@ -65,7 +64,7 @@ from regrasp_drake.station.palm_toss import (
     separation_s,
 )
 from regrasp_drake.station.station import start_poses
-from regrasp_drake.throw_catch import plan_catch, watch
+from regrasp_drake.throw_catch import plan_catch, watch, with_release
 from regrasp_drake.world.objects import load_catalogue
 
 _FORMAT = "regrasp_drake.FlightPredictor/3"
@@ -186,9 +185,9 @@ class FlightPredictor:
         """The fitted residual, by group (RESIDUALS' keys): 3 numbers each."""
         return {k: list(v) for k, v in self._d["residual"].items()}
 
-    def predict_state(self, obj, scenario) -> np.ndarray:
-        """The predicted 13-row state at t_free_s; InputError when the
-        predictor was fitted for another throw than the scenario's."""
+    def check_scenario(self, scenario) -> None:
+        """InputError, naming the field, when the predictor was fitted for
+        another throw than the scenario's."""
         for field, value, expected in (
                 ("t_free_s", self.t_free_s(), free_time_s(scenario)),
                 ("separation_s", self._d["separation_s"], separation_s(
@@ -198,6 +197,10 @@ class FlightPredictor:
                                   f"{expected:.6g} s, the scenario's throw "
                                   "(fit it on this scenario's data set: "
                                   "`regrasp-drake train-flight`)")
+
+    def predict_state(self, obj, scenario) -> np.ndarray:
+        """The predicted 13-row state at t_free_s (check_scenario first)."""
+        self.check_scenario(scenario)
         model = rigid_ride_state(scenario, obj)
         R_model = _R(model[:4])
         return _state(obj, _targets(obj, model, R_model) + self._residual,
@@ -215,14 +218,15 @@ class FlightPredictor:
         return as_watched(*self.predict_flight(obj, scenario))
 
     def plan(self, obj, scenario, ik):
-        """plan_catch on the predicted flight, with the predicted state at
-        the release kept as the plan's release_state: the catching throw
-        compares its own release with it and corrects the palm
-        (`throw_catch.release_correction`). InputError when the predicted
-        flight has no reachable catch point."""
-        plan = plan_catch(scenario, obj, ik, self.as_watched(obj, scenario))
-        return dc.replace(plan, release_state=self.predict_state(obj,
-                                                                 scenario))
+        """plan_catch on the predicted flight, with its state at the
+        release time kept as the plan's release_state (`with_release`, as
+        for a watched flight; none when the flight has no sample then): the
+        catching throw compares its own release with it and corrects the
+        palm (`throw_catch.release_correction`). InputError when the
+        predicted flight has no reachable catch point."""
+        flight = self.as_watched(obj, scenario)
+        return with_release(plan_catch(scenario, obj, ik, flight), scenario,
+                            flight)
 
     # ---- files ---------------------------------------------------------
     def save(self, path) -> Path:

@@ -456,7 +456,7 @@ class _Phase:
         if flight_predictor is not None:
             # (a predictor fitted for another throw is refused here, not
             # taken for a flight without a catch point)
-            flight_predictor.predict_state(self.obj, self.scenario)
+            flight_predictor.check_scenario(self.scenario)
             try:
                 plan = flight_predictor.plan(self.obj, self.scenario, self.ik)
                 self.report("no watching throw: the catch is planned from "
