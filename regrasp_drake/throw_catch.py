@@ -118,7 +118,9 @@ def catch_palm_poses(scenario: Scenario, point, obj: ObjectSpec):
     return palm_poses_for(
         point, obj.grasp_radius, obj=obj, com_margin_m=c.palm_com_margin_m,
         max_palm_tilt_rad=float(np.arcsin(c.tilt_tolerance)),
-        across_com_fraction=c.palm_across_com_fraction)
+        across_com_fraction=c.palm_across_com_fraction,
+        toward_landing_end_m=c.palm_toward_landing_end_m,
+        toward_fingers_m=c.palm_toward_fingers_m)
 
 
 def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,

@@ -189,7 +189,41 @@ class TestPalmPose(unittest.TestCase):
             palm_poses_for(c, obj.grasp_radius, obj=obj,
                            across_com_fraction=1.0)[0].translation())
 
-
+    def test_palm_toward_the_landing_end_and_its_heel(self):
+        # The object turns end over end about the world x axis as it lands
+        # (w_W along x): with w_x > 0 its +y end rises, the -y end comes
+        # down first, and the palm moves toward -y; then toward its heel
+        # (-x of the palm), so that the object lands nearer the fingers.
+        # Its height is set afterwards from the object's lowest point.
+        obj = load_catalogue()["table1-row2"]
+        base = dict(t_s=1.0, p_WO=np.array([0.8, -0.1, 0.7]),
+                    y_W=np.array([0.0, 1.0, 0.0]), v_catch=-3.0, tilt=0.0,
+                    R_WO=np.eye(3))
+        plain = palm_poses_for(CatchPoint(**base), obj.grasp_radius,
+                               obj=obj)[0]
+        for w_x, side in ((5.5, -1.0), (-5.5, 1.0)):
+            with self.subTest(w_x=w_x):
+                c = CatchPoint(**base, w_W=np.array([w_x, 0.0, 0.0]))
+                # Without the two shifts the angular velocity changes nothing.
+                np.testing.assert_array_equal(
+                    palm_poses_for(c, obj.grasp_radius, obj=obj)[0]
+                    .translation(), plain.translation())
+                moved = palm_poses_for(c, obj.grasp_radius, obj=obj,
+                                       toward_landing_end_m=0.01,
+                                       toward_fingers_m=0.01)[0]
+                d = moved.translation() - plain.translation()
+                x_palm = plain.rotation().matrix()[:, 0]
+                expected = side * 0.01 * np.array([0.0, 1.0, 0.0]) \
+                    - 0.01 * x_palm
+                np.testing.assert_allclose(d[:2], expected[:2], atol=1e-9)
+                np.testing.assert_allclose(
+                    moved.rotation().matrix(), plain.rotation().matrix())
+        # A catch point without its angular velocity is not moved along the
+        # axis (only toward the heel).
+        moved = palm_poses_for(CatchPoint(**base), obj.grasp_radius, obj=obj,
+                               toward_landing_end_m=0.01)[0]
+        np.testing.assert_array_equal(moved.translation(),
+                                      plain.translation())
 class TestInverseKinematics(unittest.TestCase):
     @classmethod
     def setUpClass(cls):

@@ -60,6 +60,10 @@ class TestScenario(unittest.TestCase):
             "catch:\n  h_catch_m: 0.9\n": "catch.h_catch_m",
             "catch:\n  palm_across_com_fraction: 1.5\n":
                 "catch.palm_across_com_fraction",
+            "catch:\n  palm_toward_landing_end_m: -0.01\n":
+                "catch.palm_toward_landing_end_m",
+            "catch:\n  palm_toward_fingers_m: 0.05\n":
+                "catch.palm_toward_fingers_m",
             "arm:\n  kp: [1, 2]\n": "arm.kp",
             "throw:\n  knot_times_s: [0, 0.2, 0.1]\n  knot_q_rad: "
             "[[0,0,0,0,0,0],[0,0,0,0,0,0],[0,0,0,0,0,0]]\n": "throw.knot_times_s",

@@ -40,6 +40,7 @@ class CatchPoint:
     v_catch: float          # the object's vertical velocity there, [m/s]
     tilt: float             # |y_O · z_W|, [-]
     R_WO: np.ndarray | None = None  # the object's orientation there, 3×3
+    w_W: np.ndarray | None = None   # its angular velocity there, [rad/s]
 
     def as_dict(self) -> dict:
         return {"t_s": round(self.t_s, 4),
@@ -53,10 +54,11 @@ def _rotation(quaternion_wxyz) -> np.ndarray:
     return RotationMatrix(Quaternion(q / np.linalg.norm(q))).matrix()
 
 
-def _point(t, p, v, R_WO, k) -> CatchPoint:
+def _point(t, p, v, R_WO, k, w) -> CatchPoint:
     return CatchPoint(t_s=float(t[k]), p_WO=p[:, k].copy(),
                       y_W=R_WO[k][:, 1].copy(), v_catch=float(v[2, k]),
-                      tilt=float(abs(R_WO[k][2, 1])), R_WO=R_WO[k])
+                      tilt=float(abs(R_WO[k][2, 1])), R_WO=R_WO[k],
+                      w_W=w[:, k].copy())
 
 
 def lowest_points_z(obj: ObjectSpec, object_state) -> np.ndarray:
@@ -149,7 +151,8 @@ def catch_moments(t, object_state, obj: ObjectSpec, *, height_m: float,
         t, object_state, obj, gravity_m_per_s2=gravity_m_per_s2)
         if point.t_s >= ready_s and abs(point.p_WO[2] - height_m) <= band_m
     ] if exact_crossings else []
-    return exact + [_point(t, p, v, R_WO, k) for k in candidates]
+    return exact + [_point(t, p, v, R_WO, k, object_state[7:10])
+                    for k in candidates]
 
 
 def horizontal_moments(t, object_state, obj: ObjectSpec, *,
@@ -195,7 +198,8 @@ def horizontal_moments(t, object_state, obj: ObjectSpec, *,
         R = _rotation(x[:4])
         points.append(CatchPoint(
             t_s=0.5 * (lo + hi), p_WO=x[4:7].copy(), y_W=R[:, 1].copy(),
-            v_catch=float(x[12]), tilt=float(abs(R[2, 1])), R_WO=R))
+            v_catch=float(x[12]), tilt=float(abs(R[2, 1])), R_WO=R,
+            w_W=x[7:10].copy()))
     return points
 
 
@@ -223,7 +227,9 @@ def palm_poses_for(catch_point: CatchPoint, grasp_radius_m: float,
                    theta_rad: float = 0.3, obj: ObjectSpec | None = None,
                    com_margin_m: float = 0.02,
                    max_palm_tilt_rad: float = 0.3,
-                   across_com_fraction: float = 1.0) -> list[RigidTransform]:
+                   across_com_fraction: float = 1.0,
+                   toward_landing_end_m: float = 0.0,
+                   toward_fingers_m: float = 0.0) -> list[RigidTransform]:
     """The palm's poses under a catch point, preferred first: the fingertips
     (palm +x, the paper's z_k) horizontal and perpendicular to the object's
     axis; first on the side the paper's θ construction picks (eqs. 2-5), then
@@ -240,8 +246,13 @@ def palm_poses_for(catch_point: CatchPoint, grasp_radius_m: float,
     `across_com_fraction` of the way to it from the grasp piece's axis), and
     along the axis under the grasp piece, shifted only as far as it takes to
     bring the centre of mass within `com_margin_m` of the palm's centre (the
-    palm is 8.5 cm across: a centre of mass much farther out tips the object
-    over its edge)."""
+    palm is 11.5 cm across: a centre of mass much farther out tips the object
+    over its edge), then `toward_landing_end_m` toward the end of the object
+    that comes down first (the object turns end over end as it lands: the
+    end coming down strikes first and the palm should be under it); and the
+    palm moves `toward_fingers_m` toward its heel, so that the object lands
+    that much nearer the fingers, inside the cage they close
+    (studies/hand_design: both measured with the 115 mm palm)."""
     y = catch_point.y_W.copy()
     y[2] = 0.0
     y /= np.linalg.norm(y)
@@ -259,13 +270,18 @@ def palm_poses_for(catch_point: CatchPoint, grasp_radius_m: float,
     f = float(across_com_fraction)
     p_WP = catch_point.p_WO + f * p_OCm_W - (f * along) * y + np.sign(
         along) * max(0.0, abs(along) - com_margin_m) * y
+    if toward_landing_end_m and catch_point.w_W is not None:
+        # The +y end's vertical velocity relative to the centre of mass,
+        # per metre along the axis: negative, the +y end comes down first.
+        descent = np.cross(catch_point.w_W, y)[2]
+        p_WP = p_WP - np.sign(descent) * toward_landing_end_m * y
     poses = []
     for x_W in (x, -x):
         R_WP = palm_frame(catch_point.y_W, max_palm_tilt_rad, x_W)
         z_W = R_WP[:, 2]
         # Height: the object's lowest point along the palm normal is
         # palm_clearance_m above the palm's plane.
-        p = p_WP.copy()
+        p = p_WP - toward_fingers_m * R_WP[:, 0]
         p[2] = (lowest_point_along(obj, R_WO, catch_point.p_WO, z_W)
                 - palm_clearance_m - p[:2] @ z_W[:2]) / z_W[2]
         poses.append(RigidTransform(RotationMatrix(R_WP), p))

@@ -208,8 +208,18 @@ class CatchConfig:
     tilt_tolerance: float = 0.3
     # Along the object's axis the palm is centred under the grasp piece, but
     # shifted so that the centre of mass is at most this far from the palm's
-    # centre (the palm is 0.085 m wide along the axis), [m].
-    palm_com_margin_m: float = 0.02
+    # centre (the palm is 0.115 m wide along the axis), [m]: 0, under the
+    # centre of mass.
+    palm_com_margin_m: float = 0.0
+    # ... then this far toward the end of the object that comes down first
+    # at the catch moment (it turns end over end as it lands), [m] ...
+    palm_toward_landing_end_m: float = 0.01
+    # ... and the palm this far toward its heel, so that the object lands
+    # nearer the fingers (studies/hand_design: on
+    # the 115 mm palm, with the two above, 23, 24, 20, 21, 20 of the 25
+    # tolerance offsets caught at Table 1's cells, against 23, 22, 23, 18,
+    # 17 under the grasp piece), [m].
+    palm_toward_fingers_m: float = 0.01
     # Across the object's axis the palm's centre lies this fraction of the
     # way from the grasp piece's axis to the centre of mass: 1 under the
     # centre of mass (an object landing flat does not tip off the palm), 0
@@ -495,6 +505,10 @@ def validate(s: Scenario) -> Scenario:
     _in_range("catch.tilt_tolerance", k.tilt_tolerance, 0.0, 1.0)
     _in_range("catch.height_band_m", k.height_band_m, 0.0, 1.0, " m")
     _in_range("catch.palm_com_margin_m", k.palm_com_margin_m, 0.0, 0.05, " m")
+    _in_range("catch.palm_toward_landing_end_m", k.palm_toward_landing_end_m,
+              0.0, 0.03, " m")
+    _in_range("catch.palm_toward_fingers_m", k.palm_toward_fingers_m, 0.0,
+              0.03, " m")
     _in_range("catch.palm_across_com_fraction", k.palm_across_com_fraction,
               0.0, 1.0)
     if len(k.ik_seed_q_rad) != 6:
