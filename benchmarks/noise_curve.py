@@ -39,8 +39,10 @@ the shipped one) is that of the libraries' learning phase. A trial:
   at-release: no watching throw: one noisy catching throw whose catch is
       planned when it releases the object, from the object's state seen
       then (`learn --at-release`), with the parameters that mode learned.
-Writes <out>.jsonl (one line per trial, as it finishes; a rerun resumes:
-another scenario needs another --out),
+Writes <out>.jsonl (one line per trial, as it finishes, with the scenario's
+digest and the cell; a rerun resumes them, and refuses an output holding
+trials of another scenario or at another cell than the libraries': that
+needs another --out),
 <out>.json (catch rate per mode and level, with its 95 % Wilson interval and
 every outcome's count) and <out>.png (the curves, the intervals as bars).
 """
@@ -92,6 +94,28 @@ def _scenario(level, trial, scenario_path=None):
     return dc.replace(scenario, throw=dc.replace(scenario.throw, noise=noise))
 
 
+def _base_digest(scenario_path=None) -> str:
+    """The digest of the scenario the trials perturb (without the noise)."""
+    from regrasp_drake.station.scenario import load_scenario, scenario_digest
+    return scenario_digest(load_scenario(scenario_path))
+
+
+def _foreign_rows(done: dict, cells: dict, digest: str) -> str | None:
+    """Why rows already in the output cannot be resumed, or None: a row of
+    another scenario (or one written before rows carried it), or at another
+    cell than the library's for its mode and object."""
+    for (mode, name, *_), row in done.items():
+        if row.get("scenario") != digest:
+            return (f"a trial of {name} ({mode}) made under scenario "
+                    f"{row.get('scenario')}, not this one ({digest})")
+        cell = cells.get((mode, name))
+        if cell is not None and (row["h_catch"], row["h_down"]) != cell:
+            return (f"a trial of {name} ({mode}) at ({row['h_catch']}, "
+                    f"{row['h_down']}) m, where the library's cell is "
+                    f"({cell[0]}, {cell[1]}) m")
+    return None
+
+
 def _key(row) -> tuple:
     return row["mode"], row["object"], row["level"], row["trial"]
 
@@ -119,7 +143,8 @@ def _trial(task):
     ik = ArmIk()
     entry = lookup(library, name)
     row = {"mode": mode, "object": name, "level": level, "trial": trial,
-           "h_catch": entry.h_catch, "h_down": entry.h_down}
+           "h_catch": entry.h_catch, "h_down": entry.h_down,
+           "scenario": _base_digest(scenario_path)}
     parameters = (entry.h_catch, entry.h_down)
 
     def at_release(state, t):
@@ -252,6 +277,18 @@ def _run(args, stack) -> int:
     lines.parent.mkdir(parents=True, exist_ok=True)
     done = read_rows(lines, key=_key)
     scenario = args.scenario and str(args.scenario)
+    cells = {}
+    for mode, path in libraries.items():
+        entries = load_library(path)
+        cells.update({(mode, name): (entries[name].h_catch,
+                                     entries[name].h_down)
+                      for name in args.objects if name in entries})
+    foreign = _foreign_rows(done, cells, _base_digest(scenario))
+    if foreign:
+        print(f"noise_curve: error: --out: {lines} holds {foreign}, expected "
+              "trials of this run to resume (another scenario or library "
+              "needs another --out)", file=sys.stderr)
+        return 2
     if any(m.startswith("first-throw") for m in libraries):
         from regrasp_drake.learning.flight_predictor import FlightPredictor
         try:

@@ -54,6 +54,34 @@ class NoiseCurveTest(RefusalAssertions, unittest.TestCase):
                            "--scenario-name: got 'Nope'")
         self.assertFalse(self.out.with_suffix(".jsonl").exists())
 
+    def test_trials_of_another_scenario_or_cell_are_not_resumed(self):
+        # Rows already in the output are resumed only when they were made
+        # under this scenario at the library's cell; otherwise the run is
+        # refused before any trial (the rows stay as they were).
+        from regrasp_drake.learning.library import load_library
+        from regrasp_drake.paths import MODELS_DIR
+        from regrasp_drake.station.scenario import load_scenario, scenario_digest
+        entry = load_library(MODELS_DIR / "results" / "library_table1.yaml")[
+            "table1-row5"]
+        digest = scenario_digest(load_scenario())
+        lines = self.out.with_suffix(".jsonl")
+        args = ["--objects", "table1-row5", "--levels", "0", "--trials", "1",
+                "--modes", "watch", "--out", str(self.out)]
+        for row, said in (
+                ({"scenario": "0123456789abcdef", "h_catch": entry.h_catch,
+                  "h_down": entry.h_down}, "0123456789abcdef"),
+                ({"h_catch": entry.h_catch, "h_down": entry.h_down},
+                 "scenario None"),
+                ({"scenario": digest, "h_catch": 0.04, "h_down": -0.14},
+                 "(0.04, -0.14) m")):
+            with self.subTest(row=row):
+                text = json.dumps({"mode": "watch", "object": "table1-row5",
+                                   "level": 0.0, "trial": 0, **row,
+                                   "outcome": "caught"}) + "\n"
+                lines.write_text(text)
+                self.assertRefused(args, "--out", said)
+                self.assertEqual(lines.read_text(), text)
+
     def test_unknown_mode_refused(self):
         with contextlib.redirect_stderr(io.StringIO()) as err, \
                 self.assertRaises(SystemExit) as exit_:
