@@ -363,8 +363,8 @@ class AtReleaseTest(unittest.TestCase):
         scenario = load_scenario(name="FingerThrow")
         obj = load_catalogue()["holdout-scraper-d180"]
         with self.assertRaises(NoCatchPoint) as caught:
-            learn(scenario, obj, self.model, ik=self.ik, at_release=True,
-                  max_throws=3, progress=None)
+            learn(scenario, obj, self.model, ik=ArmIk(scenario.directives),
+                  at_release=True, max_throws=3, progress=None)
         self.assertEqual(caught.exception.throws, 1)
         self.assertAlmostEqual(caught.exception.sim_time_s,
                                release_time(scenario))

@@ -101,8 +101,10 @@ class TestLearningPhase(unittest.TestCase):
                            str(d / "apply.json"))
         cls.apply_json = (json.loads((d / "apply.json").read_text())
                           if cls.applied.returncode == 0 else None)
-        # A search that fails and is stopped by a cap on the throws.
-        model, _ = load_weights(constant_weights(d / "misses.pt", 0.04, 0.0))
+        # A search that fails and is stopped by a cap on the throws: h_catch
+        # 0.04 m (the fingers start closing late) with h_down -0.07 m and the
+        # wavefront's next cell drop table1-row2.
+        model, _ = load_weights(constant_weights(d / "misses.pt", 0.04, -0.07))
         cls.capped_library = d / "capped.yaml"
         cls.capped = learn(load_scenario(name="Fast"),
                            load_catalogue()[OBJECT], model,
@@ -172,9 +174,9 @@ class TestLearningPhase(unittest.TestCase):
         self.assertFalse(r.caught)
         self.assertEqual(r.stopped, "max_throws")
         self.assertEqual(r.throws, 3)
-        self.assertEqual(r.start_cell, (0, 14))
+        self.assertEqual(r.start_cell, (0, 7))
         self.assertEqual([a.cell for a in r.attempts],
-                         wavefront_order((0, 14))[:2])
+                         wavefront_order((0, 7))[:2])
         self.assertEqual([a.throw for a in r.attempts], [2, 3])
         self.assertTrue(all(a.outcome != "caught" for a in r.attempts))
         self.assertIsNone(r.learned)
@@ -301,7 +303,7 @@ class UnreachableLoweringTest(unittest.TestCase):
             Path(__file__).parent / "data" / "adze-d300-3_finger_throw.jsonl")
             .read_text().splitlines())}
         cls.scenario = load_scenario(name="FingerThrow")
-        cls.ik = ArmIk()
+        cls.ik = ArmIk(cls.scenario.directives)
         cls.obj = load_catalogue()["adze-d300-3"]
 
     def test_reach_is_the_maps_failed_columns(self):

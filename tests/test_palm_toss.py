@@ -129,7 +129,7 @@ class ContactGeometryTest(unittest.TestCase):
         self.assertEqual(names, ["bumper", "palm_collision"])
         self.assertEqual(count, 2)  # table1-row4: a cylinder and a box
         names, count = self._world("pads", "rounded")
-        self.assertEqual(len(names), 37)
+        self.assertEqual(len(names), 49)  # the base box and 6 x 8 pads
         self.assertTrue(all(n.startswith("pads_") for n in names))
         self.assertEqual(sum(n.startswith("pads_bumper_") for n in names), 8)
         self.assertEqual(count, 1 + 9)  # the box: inset box, 8 spheres
