@@ -215,10 +215,10 @@ class CatchConfig:
     # at the catch moment (it turns end over end as it lands), [m] ...
     palm_toward_landing_end_m: float = 0.01
     # ... and the palm this far toward its heel, so that the object lands
-    # nearer the fingers (studies/hand_design: on
-    # the 115 mm palm, with the two above, 23, 24, 20, 21, 20 of the 25
-    # tolerance offsets caught at Table 1's cells, against 23, 22, 23, 18,
-    # 17 under the grasp piece), [m].
+    # nearer the fingers (studies/hand_design: on the 115 mm palm, with the
+    # two above, 23, 24, 20, 21, 20 of the 25 tolerance offsets caught at
+    # the 85 mm palm's network cells for Table 1, against 23, 22, 23, 18, 17
+    # under the grasp piece), [m].
     palm_toward_fingers_m: float = 0.01
     # Across the object's axis the palm's centre lies this fraction of the
     # way from the grasp piece's axis to the centre of mass: 1 under the
