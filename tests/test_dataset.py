@@ -139,6 +139,29 @@ class OldPhysicsTest(unittest.TestCase):
         self.assertEqual((old / "cells" / "table1-row2.jsonl").read_text(),
                          '{"cell": [0, 0]}\n')
 
+    def test_a_set_of_other_robot_models_is_not_resumed(self):
+        # A set begun with other robot model files (the scenario names them
+        # by path only; its robot_models.sha256 not sdf/'s digest now) is
+        # refused before any simulation, naming sdf/ and both digests, and
+        # what it holds is left as it was.
+        from regrasp_drake.learning.dataset import robot_models_digest
+        old = Path(self.tmp.name) / "other_hand"
+        (old / "cells").mkdir(parents=True)
+        text = scenario_yaml(load_scenario())
+        (old / "scenario.yaml").write_text(text)
+        (old / "robot_models.sha256").write_text("0123456789abcdef\n")
+        (old / "cells" / "table1-row2.jsonl").write_text('{"cell": [0, 0]}\n')
+        with self.assertRaises(InputError) as e:
+            generate(OBJECTS, old, workers=1, only=COARSE, progress=False)
+        self.assertTrue(str(e.exception).startswith(
+            f"sdf/: the robot models (*.sdf, *.dmd.yaml) have digest "
+            f"{robot_models_digest()} here but 0123456789abcdef in the data "
+            f"set in {old}"), str(e.exception))
+        self.assertEqual((old / "robot_models.sha256").read_text(),
+                         "0123456789abcdef\n")
+        self.assertEqual((old / "cells" / "table1-row2.jsonl").read_text(),
+                         '{"cell": [0, 0]}\n')
+
 
 class GenerateTest(unittest.TestCase):
     """Two objects on a coarse grid: serial, and with 2 workers killed

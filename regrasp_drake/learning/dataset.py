@@ -234,9 +234,27 @@ def generate(names: list[str], out_dir: Path, *, workers: int = 1,
     provenance = assemble(names, out_dir, scenario_path=scenario_path,
                           wall_s=wall_s, workers=workers, backend=backend,
                           catch_points=catch_points, computed=len(tasks))
-    # provenance.json holds the scenario now (check_same_scenario).
+    # provenance.json holds the scenario and the models' digest now
+    # (check_same_scenario).
     (out_dir / "scenario.yaml").unlink(missing_ok=True)
+    (out_dir / _MODELS_FILE).unlink(missing_ok=True)
     return provenance
+
+
+# The robot's model files (the arm, the hand and their directives), which
+# the scenario names by path only: a data set records their digest.
+_MODELS_FILE = "robot_models.sha256"
+
+
+def robot_models_digest() -> str:
+    """A sha256 of sdf/'s robot model files (*.sdf, *.dmd.yaml; the
+    objects have the catalogue's hash)."""
+    digest = hashlib.sha256()
+    sdf = REPO_DIR / "sdf"
+    for path in sorted(list(sdf.glob("*.sdf")) + list(sdf.glob("*.dmd.yaml"))):
+        digest.update(path.name.encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
 
 
 def scenario_text(scenario_path=None) -> str:
@@ -250,7 +268,9 @@ def check_same_scenario(out_dir: Path, scenario_path=None) -> None:
     has finished, in its scenario.yaml (written here for a new data set).
     Another one is refused (InputError naming --scenario and the first
     field that differs): resuming would mix two scenarios' maps under one
-    provenance."""
+    provenance. So are other robot model files (sdf/, which the scenario
+    names by path only), when the data set recorded their digest."""
+    _check_same_models(out_dir)
     current = scenario_text(scenario_path)
     provenance, started = out_dir / "provenance.json", out_dir / "scenario.yaml"
     stored = None
@@ -281,6 +301,33 @@ def check_same_scenario(out_dir: Path, scenario_path=None) -> None:
             f"--scenario: {field} is {new!r} here but {old!r} in the data set "
             f"in {out_dir} (computed with another scenario), expected the "
             "same scenario to resume it, or another --out")
+
+
+def _check_same_models(out_dir: Path) -> None:
+    """InputError when out_dir's entries were computed with other robot
+    model files than sdf/'s now (the digest in its provenance.json, or in
+    robot_models.sha256 before its first run finished; a new data set gets
+    that file). A data set that recorded none is not checked."""
+    current = robot_models_digest()
+    provenance, started = out_dir / "provenance.json", out_dir / _MODELS_FILE
+    if provenance.exists():
+        try:
+            stored = load_provenance(provenance).get("robot_models_sha256")
+        except InputError as e:
+            raise InputError(f"--out: {e}") from None
+    elif started.exists():
+        stored = read_text(started, "digest file").strip()
+    else:
+        if not (out_dir / "scenario.yaml").exists():  # a new data set
+            out_dir.mkdir(parents=True, exist_ok=True)
+            started.write_text(current + "\n")
+        return
+    if stored is not None and stored != current:
+        raise InputError(
+            f"sdf/: the robot models (*.sdf, *.dmd.yaml) have digest "
+            f"{current} here but {stored} in the data set in {out_dir} "
+            "(computed with other models), expected the same models to "
+            "resume it, or another --out")
 
 
 def _first_difference(a, b, prefix=""):
@@ -447,6 +494,7 @@ def assemble(names, out_dir: Path, *, scenario_path=None, wall_s=None,
         "scenario": scenario_text(scenario_path),
         "catalogue_sha256": hashlib.sha256(
             Path(CATALOGUE_PATH).read_bytes()).hexdigest(),
+        "robot_models_sha256": robot_models_digest(),
         "code_version": _code_version(),
         "generation_wall_s": None if wall_s is None else round(wall_s, 1),
         "entries_computed": computed,
