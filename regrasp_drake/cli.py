@@ -50,6 +50,15 @@ def _add_scenario_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenario-text", metavar="YAML",
                    help="fields that replace the scenario's, e.g. "
                         "'{catch: {return_s: 0.4}}'")
+    p.add_argument("--target", choices=("keep", "flip", "turn", "any"),
+                   help="the grasp the catch must end in, relative to how "
+                        "the object lies before the throw (keep, flip: end "
+                        "over end, turn: the wrist's half turn, any: held at "
+                        "all); picks the target's throw (default: the "
+                        "scenario's regrasp.target, 'any')")
+    p.add_argument("--offset-mm", type=float, metavar="MM",
+                   help="with --target: the palm centre's position along the "
+                        "object's axis from its centre of mass, mm (default 0)")
 
 
 @contextlib.contextmanager
@@ -60,13 +69,28 @@ def _resolved_scenario(args):
     args.scenario_label says how it was given."""
     name = getattr(args, "scenario_name", None)
     text = getattr(args, "scenario_text", None)
-    if name is None and text is None:
+    kind = getattr(args, "target", None)
+    offset = getattr(args, "offset_mm", None)
+    if kind is None and getattr(args, "target_required", False):
+        raise InputError("--target: missing, expected keep, flip, turn or any")
+    if offset is not None and kind is None:
+        raise InputError(f"--offset-mm: got {offset:g} without --target, "
+                         "expected --target keep, flip, turn or any beside it")
+    if name is None and text is None and kind is None:
         yield
         return
-    from regrasp_drake.station.scenario import load_scenario, scenario_yaml
+    from regrasp_drake.planning.grasp import Target
+    from regrasp_drake.station.scenario import (
+        load_scenario,
+        scenario_yaml,
+        with_target,
+    )
     scenario = load_scenario(args.scenario, name=name, text=text)
+    if kind is not None:
+        scenario = with_target(scenario, Target(kind, offset or 0.0))
     given = [("--scenario", args.scenario and args.scenario.resolve()),
-             ("--scenario-name", name), ("--scenario-text", text)]
+             ("--scenario-name", name), ("--scenario-text", text),
+             ("--target", kind), ("--offset-mm", offset)]
     args.scenario_label = " ".join(f"{flag} {value}" for flag, value in given
                                    if value is not None)
     with tempfile.TemporaryDirectory(prefix="regrasp-scenario-") as d:
@@ -176,10 +200,12 @@ def _cmd_grid(args) -> int:
 
 def _scenario_and_object(args):
     """The scenario and object of a command, and their provenance labels."""
-    from regrasp_drake.station.scenario import load_scenario
+    from regrasp_drake.planning.grasp import check_reachable
+    from regrasp_drake.station.scenario import load_scenario, target_of
     from regrasp_drake.world.objects import resolve_object
     scenario = load_scenario(args.scenario)
     obj = resolve_object(name=args.object, file=args.object_file)
+    check_reachable(target_of(scenario), obj)
     source = (str(args.object_file.resolve()) if args.object_file
               else "catalogue")
     label = getattr(args, "scenario_label", None) or (
@@ -302,7 +328,7 @@ def _cmd_learn(args) -> int:
         from regrasp_drake.learning.plots import plot_search
         plot_search(result.search_attempts, result.start_cell, args.plot,
                     title=f"{obj.name}: {result.throws} throws, "
-                          f"{'caught' if result.caught else 'not caught'}")
+                          f"{'caught' if result.success else 'not caught'}")
     summary = result.as_dict() | {
         "stored_in": str(args.library) if result.learned else None}
     print(json.dumps(summary, indent=1))
@@ -510,26 +536,32 @@ def make_parser() -> argparse.ArgumentParser:
                    help="PNG of the flight, its axis tilt and catch points")
     p.set_defaults(func=_cmd_throw)
 
-    p = sub.add_parser("learn", help="the learning phase: watch, predict, "
-                                     "catch, search the parameter space "
-                                     "(--search)")
-    _add_object_args(p)
-    _add_scenario_arg(p)
-    _add_library_arg(p)
-    p.add_argument("--weights", type=Path, metavar="F",
-                   help="the MLP's weights file (default: the scenario's "
-                        "catch.weights in models/)")
-    p.add_argument("--max-throws", type=int, metavar="N",
-                   help="stop after N throws, the watch included (default: "
-                        "until a catch or all 150 cells are tried)")
-    p.add_argument("--html", type=Path, metavar="F",
-                   help="the Meshcat replay of every throw, one HTML file")
-    p.add_argument("--json", type=Path, metavar="F", help="write the result")
-    p.add_argument("--plot", type=Path, metavar="F",
-                   help="PNG of the search (the paper's Fig. 7)")
-    _add_first_throw_args(p)
-    _add_search_arg(p)
-    p.set_defaults(func=_cmd_learn)
+    for command, help_text in (
+            ("learn", "the learning phase: watch, predict, catch, search the "
+                      "parameter space (--search)"),
+            ("regrasp", "the learning phase aiming for a grasp: --target "
+                        "keep/flip/turn/any, --offset-mm; the same options "
+                        "as learn")):
+        p = sub.add_parser(command, help=help_text)
+        _add_object_args(p)
+        _add_scenario_arg(p)
+        _add_library_arg(p)
+        p.add_argument("--weights", type=Path, metavar="F",
+                       help="the MLP's weights file (default: the scenario's "
+                            "catch.weights in models/)")
+        p.add_argument("--max-throws", type=int, metavar="N",
+                       help="stop after N throws, the watch included "
+                            "(default: until a catch or all 150 cells are "
+                            "tried)")
+        p.add_argument("--html", type=Path, metavar="F",
+                       help="the Meshcat replay of every throw, one HTML file")
+        p.add_argument("--json", type=Path, metavar="F",
+                       help="write the result")
+        p.add_argument("--plot", type=Path, metavar="F",
+                       help="PNG of the search (the paper's Fig. 7)")
+        _add_first_throw_args(p)
+        _add_search_arg(p)
+        p.set_defaults(func=_cmd_learn, target_required=command == "regrasp")
 
     p = sub.add_parser("apply", help="the applying phase: one throw, caught "
                                      "with what `learn` stored")
@@ -632,6 +664,8 @@ _OUTPUTS = {
     "throw": {"json": "json", "plot": "plot"},
     "learn": {"library": "library", "html": "replay", "json": "json",
               "plot": "plot"},
+    "regrasp": {"library": "library", "html": "replay", "json": "json",
+                "plot": "plot"},
     "apply": {"html": "replay", "json": "json"},
     "dataset": {"out": "data set"},
     "train": {"out": "weights"},

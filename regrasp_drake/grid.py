@@ -23,6 +23,7 @@ from regrasp_drake.parameter_space import (  # noqa: F401 (nearest_cell: re-expo
     ENDINGS,
     H_CATCH_VALUES,
     H_DOWN_VALUES,
+    HELD_OUTCOMES,
     cell_parameters,
     cells,
     nearest_cell,
@@ -189,10 +190,8 @@ def end_progress():
 def ending(row: dict) -> str:
     """The key of ENDINGS that describes a map row (the finger and arm
     bodies of world/robot.py tell where a dropped object lies)."""
-    if row["outcome"] == "caught":
-        return "caught"
-    if row["outcome"] == "failed":
-        return "failed"
+    if row["outcome"] in ("caught", "wrong_grasp", "failed"):
+        return row["outcome"]
     reason = row.get("drop_reason")
     if row["outcome"] != "dropped" or reason is None:
         return "other"
@@ -222,7 +221,7 @@ def disagreements(rows: dict) -> dict:
     out."""
     return {cell: row for cell, row in rows.items()
             if row.get("held_by_contact") is not None
-            and (row["outcome"] == "caught") != row["held_by_contact"]}
+            and (row["outcome"] in HELD_OUTCOMES) != row["held_by_contact"]}
 
 
 def format_map(rows: dict) -> str:

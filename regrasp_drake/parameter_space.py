@@ -49,11 +49,17 @@ def nearest_cell(h_catch: float, h_down: float) -> tuple[int, int]:
             int(np.argmin(np.abs(H_DOWN_VALUES - h_down))))
 
 
+# The outcomes in which the hand holds the object at the end: "caught" (in
+# the scenario's target grasp, planning/grasp.py; any grasp for target
+# "any") and "wrong_grasp" (held in another).
+HELD_OUTCOMES = ("caught", "wrong_grasp")
+
 # How a cell's episode ended: the keys grid.ending gives a map row (from its
 # outcome, the grasp monitor's drop reason and the bodies the object touches
 # at the end), and what each means.
 ENDINGS = {
-    "caught": "caught",
+    "caught": "caught (in the target grasp, for a regrasp target)",
+    "wrong_grasp": "held, but not in the target grasp",
     "in_fingers": "not held: in the fingers, no grasp recognized by the "
                   "palm sensors, the bumper or the fingers' servos",
     "on_arm": "not held: at rest against the arm, no finger touching",

@@ -18,6 +18,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 
 from regrasp_drake.errors import InputError
 from regrasp_drake.parameter_space import H_CATCH_RANGE
+from regrasp_drake.planning import grasp
 from regrasp_drake.planning.catch_plan import (
     CatchPoint,
     catch_moments,
@@ -32,8 +33,9 @@ from regrasp_drake.station.episode import (
     EpisodeResult,
     release_time,
     run_episode,
+    start_grasp,
 )
-from regrasp_drake.station.scenario import Scenario
+from regrasp_drake.station.scenario import Scenario, target_of
 from regrasp_drake.world.objects import ObjectSpec
 
 
@@ -113,14 +115,39 @@ def plan_catch(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
 
 def catch_palm_poses(scenario: Scenario, point, obj: ObjectSpec):
     """The palm's poses under a catch point (`palm_poses_for`, preferred
-    side first) with the scenario's catch settings."""
+    side first) with the scenario's catch settings, the palm slid along the
+    object's axis by the target's offset."""
     c = scenario.catch
     return palm_poses_for(
         point, obj.grasp_radius, obj=obj, com_margin_m=c.palm_com_margin_m,
         max_palm_tilt_rad=float(np.arcsin(c.tilt_tolerance)),
         across_com_fraction=c.palm_across_com_fraction,
         toward_landing_end_m=c.palm_toward_landing_end_m,
-        toward_fingers_m=c.palm_toward_fingers_m)
+        toward_fingers_m=c.palm_toward_fingers_m,
+        along_axis_m=1e-3 * scenario.regrasp.offset_mm)
+
+
+def planned_grasp(scenario: Scenario, obj: ObjectSpec, point: CatchPoint,
+                  X_WG: RigidTransform) -> grasp.Grasp:
+    """The grasp a palm at X_WG would hold the object in as it is at the
+    catch point, were it to land without turning further."""
+    X_WO = RigidTransform(RotationMatrix(point.R_WO), point.p_WO)
+    X_PO = X_WG.inverse() @ X_WO
+    return grasp.measure(obj, X_PO.rotation().matrix(), X_PO.translation(),
+                         np.asarray(start_grasp(scenario, obj).R_PO))
+
+
+def gives_target(scenario: Scenario, obj: ObjectSpec, point: CatchPoint,
+                 X_WG: RigidTransform) -> bool:
+    """Whether a palm at X_WG under `point` catches the object in the
+    orientation the scenario's target asks for (the axis the right way
+    round, the side where the object has one); `any`: always."""
+    target = target_of(scenario)
+    if target.kind == "any" or point.R_WO is None:
+        return True
+    verdict = grasp.judge(target, obj, start_grasp(scenario, obj),
+                          planned_grasp(scenario, obj, point, X_WG), True)
+    return verdict.axis_error_deg < 90.0 and verdict.side_ok is not False
 
 
 def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
@@ -130,6 +157,8 @@ def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     least `min_separation_s` apart. Raises InputError when none is
     reachable."""
     c = scenario.catch
+    target = target_of(scenario)
+    grasp.check_reachable(target, obj)
     t_ready = (scenario.throw.settle_s + throw.end_s(scenario.throw)
                + c.move_to_grasp_s)
     toss = throw.is_toss(scenario.throw)
@@ -165,8 +194,12 @@ def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
             continue
         for side, X_WG in zip(("paper", "mirrored"),
                               catch_palm_poses(scenario, point, obj)):
-            result = ik.solve(X_WG, q_seed)
             where = f"at t = {point.t_s:.3f} s, {side} side"
+            if not gives_target(scenario, obj, point, X_WG):
+                reasons.append(f"{where}: not the target grasp "
+                               f"({target.label()})")
+                continue
+            result = ik.solve(X_WG, q_seed)
             if not result.success:
                 reasons.append(f"{where}: {result.reason()}")
                 continue

@@ -81,6 +81,7 @@ from regrasp_drake.learning.search import (
 from regrasp_drake.parameter_space import (
     H_CATCH_RANGE,
     H_DOWN_VALUES,
+    HELD_OUTCOMES,
     cell_parameters,
     nearest_cell,
 )
@@ -91,9 +92,14 @@ from regrasp_drake.planning.catch_plan import (
 from regrasp_drake.planning.free_flight import flight_from_release
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
-from regrasp_drake.station.episode import EpisodeResult, release_time, run_episode
+from regrasp_drake.station.episode import (
+    EpisodeResult,
+    release_time,
+    run_episode,
+    start_grasp,
+)
 from regrasp_drake.station.mlp_system import FEATURE_NAMES, CatchMlp, ParameterSpace
-from regrasp_drake.station.scenario import Scenario, scenario_digest
+from regrasp_drake.station.scenario import Scenario, scenario_digest, target_of
 from regrasp_drake.throw_catch import (
     CatchPlan,
     ReleaseCorrection,
@@ -228,7 +234,9 @@ class Attempt:
     cell: tuple         # (i_catch, i_down)
     h_catch: float      # [m]
     h_down: float       # [m]
-    outcome: str        # caught | dropped | timeout | landed | failed
+    # caught (in the target grasp) | wrong_grasp | dropped | timeout |
+    # landed | failed
+    outcome: str
     sim_time_s: float   # simulated time of the throw, [s]
     wall_s: float       # wall time of the throw, [s]
     message: str        # a failed episode's reason
@@ -238,11 +246,22 @@ class Attempt:
     # How the throw corrected its watched plan at its release
     # (throw_catch.ReleaseCorrection.as_dict), when its release differed.
     release_correction: dict | None = None
+    # The grasp it ended in (planning/grasp.Grasp.as_dict; None when not
+    # held) and its error against the target.
+    achieved_grasp: dict | None = None
+    grasp_error: dict | None = None
+
+    @property
+    def caught(self) -> bool:
+        """Held at the end, in whatever grasp."""
+        return self.outcome in HELD_OUTCOMES
 
     def as_dict(self) -> dict:
         d = {"throw": self.throw, "cell": list(self.cell),
              "h_catch": self.h_catch, "h_down": self.h_down,
-             "outcome": self.outcome,
+             "outcome": self.outcome, "success": self.outcome == "caught",
+             "caught": self.caught, "achieved_grasp": self.achieved_grasp,
+             "grasp_error": self.grasp_error,
              "sim_time_s": round(self.sim_time_s, 4),
              "wall_s": round(self.wall_s, 3), "message": self.message,
              "ending": self.ending}
@@ -254,7 +273,7 @@ class Attempt:
 @dc.dataclass
 class LearningResult:
     object: str
-    caught: bool
+    success: bool       # held in the target grasp on the last throw
     stopped: str        # caught | exhausted | max_throws | no_catch_point
     throws: int         # every throw, the watching throw included
     sim_time_s: float   # simulated time of every throw, [s]
@@ -274,6 +293,18 @@ class LearningResult:
     first_plan: CatchPlan | None = None  # the predicted flight's, if replaced
     at_release: bool = False  # each throw planned when it released the object
     search: str = "wavefront"  # the search's rule: one of search.SEARCHES
+    target: dict | None = None  # the scenario's (planning/grasp.Target)
+    start_grasp: dict | None = None  # how the object lay before the throw
+
+    @property
+    def caught(self) -> bool:
+        """The last throw held the object, in whatever grasp."""
+        return bool(self.attempts) and self.attempts[-1].caught
+
+    @property
+    def achieved_grasp(self) -> dict | None:
+        """The grasp the last throw ended in (None: not held)."""
+        return self.attempts[-1].achieved_grasp if self.attempts else None
 
     @property
     def search_attempts(self) -> list[Attempt]:
@@ -283,7 +314,12 @@ class LearningResult:
 
     def as_dict(self) -> dict:
         return {
-            "object": self.object, "caught": self.caught,
+            "object": self.object, "target": self.target,
+            "success": self.success, "caught": self.caught,
+            "start_grasp": self.start_grasp,
+            "achieved_grasp": self.achieved_grasp,
+            "grasp_error": (self.attempts[-1].grasp_error if self.attempts
+                            else None),
             "stopped": self.stopped, "throws": self.throws,
             "sim_time_s": round(self.sim_time_s, 4),
             "wall_s": round(self.wall_s, 3),
@@ -359,7 +395,7 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
             stopped = "no_catch_point"
             break
         phase.search.tell(result.outcome)
-        if result.caught:
+        if result.success:
             stopped = "caught"
             break
         if phase.predicted:  # the predicted flight's plan failed
@@ -554,12 +590,14 @@ class _Phase:
             throw=self.throws, cell=cell, h_catch=h_catch, h_down=h_down,
             outcome=result.outcome, sim_time_s=result.sim_time_s,
             wall_s=result.wall_s, message=result.message,
-            ending=None if result.caught else ending(result.summary()),
+            ending=None if result.success else ending(result.summary()),
             release_correction=(
                 correction.as_dict()
                 if correction.how in ("shifted", "replanned", "kept")
-                else None)))
-        how = "" if result.caught else f" ({self.attempts[-1].ending})"
+                else None),
+            achieved_grasp=result.achieved_grasp,
+            grasp_error=result.grasp_error))
+        how = "" if result.success else f" ({self.attempts[-1].ending})"
         self.report(f"throw {self.throws}: cell {cell} (h_catch {h_catch:.2f}"
                     f" m, h_down {h_down:.2f} m): {result.outcome}{how}, "
                     f"{result.sim_time_s:.2f} s simulated, "
@@ -627,7 +665,8 @@ class _Phase:
             if library_path is not None:
                 lib.store(library_path, self.obj.name, learned)
         return LearningResult(
-            object=self.obj.name, caught=learned is not None, stopped=stopped,
+            object=self.obj.name, success=learned is not None,
+            stopped=stopped,
             throws=self.throws,
             sim_time_s=(0.0 if self.watched is None
                         else self.watched.sim_time_s)
@@ -641,7 +680,9 @@ class _Phase:
             first_plan=(None if self.first_plan is self.plan
                         else self.first_plan),
             at_release=self.at_release,
-            search="wavefront" if self.prior is None else "map-prior")
+            search="wavefront" if self.prior is None else "map-prior",
+            target=target_of(self.scenario).as_dict(),
+            start_grasp=start_grasp(self.scenario, self.obj).as_dict())
 
 
 def _same_pose(a: CatchPlan, b: CatchPlan) -> bool:

@@ -229,7 +229,8 @@ def palm_poses_for(catch_point: CatchPoint, grasp_radius_m: float,
                    max_palm_tilt_rad: float = 0.3,
                    across_com_fraction: float = 1.0,
                    toward_landing_end_m: float = 0.0,
-                   toward_fingers_m: float = 0.0) -> list[RigidTransform]:
+                   toward_fingers_m: float = 0.0,
+                   along_axis_m: float = 0.0) -> list[RigidTransform]:
     """The palm's poses under a catch point, preferred first: the fingertips
     (palm +x, the paper's z_k) horizontal and perpendicular to the object's
     axis; first on the side the paper's θ construction picks (eqs. 2-5), then
@@ -252,7 +253,9 @@ def palm_poses_for(catch_point: CatchPoint, grasp_radius_m: float,
     end coming down strikes first and the palm should be under it); and the
     palm moves `toward_fingers_m` toward its heel, so that the object lands
     that much nearer the fingers, inside the cage they close
-    (studies/hand_design: both measured with the 115 mm palm)."""
+    (studies/hand_design: both measured with the 115 mm palm). Last, the
+    palm slides `along_axis_m` toward the object's +y end (a regrasp
+    target's offset, planning/grasp.py)."""
     y = catch_point.y_W.copy()
     y[2] = 0.0
     y /= np.linalg.norm(y)
@@ -275,6 +278,8 @@ def palm_poses_for(catch_point: CatchPoint, grasp_radius_m: float,
         # per metre along the axis: negative, the +y end comes down first.
         descent = np.cross(catch_point.w_W, y)[2]
         p_WP = p_WP - np.sign(descent) * toward_landing_end_m * y
+    if along_axis_m:
+        p_WP = p_WP + along_axis_m * y
     poses = []
     for x_W in (x, -x):
         R_WP = palm_frame(catch_point.y_W, max_palm_tilt_rad, x_W)

@@ -33,8 +33,10 @@ from regrasp_drake.station.catch_state_machine import Phase
 from regrasp_drake.station.episode import (
     advance_to_outcome,
     hand_over,
+    judge_grasp,
     read_ending,
     read_outcome,
+    start_grasp,
 )
 from regrasp_drake.station.station import (
     build_episode_diagram,
@@ -58,6 +60,7 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
     `run_episode`'s.
     """
     t0 = time.perf_counter()
+    start = start_grasp(scenario, obj)
     parameters = [(float(h), float(d)) for h, d in parameters]
     episode = build_episode_diagram(scenario, obj, ik=ik, X_WG=X_WG,
                                     catch_parameters=(0.0, 0.0))
@@ -104,7 +107,9 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
                             catch_time_s=None, message=message, wall_s=None,
                             p_WO_final=None, drop_reason=None, touching=None,
                             held_by_contact=None, slip_m_per_s=None,
-                            spin_rad_per_s=None)
+                            spin_rad_per_s=None, target=None,
+                            start_grasp=None, achieved_grasp=None,
+                            grasp_error=None)
                        for _ in indices]
         else:
             results = pickle.loads(data)
@@ -130,9 +135,9 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
             try:
                 signal.pthread_sigmask(signal.SIG_SETMASK, mask)
                 os.close(read_fd)
-                result = _run_child(simulator, episode, scenario, source,
-                                    source_context, parameters[group[0]],
-                                    t_final)
+                result = _run_child(simulator, episode, scenario, obj,
+                                    start, source, source_context,
+                                    parameters[group[0]], t_final)
                 with os.fdopen(write_fd, "wb") as f:
                     f.write(pickle.dumps([result] * len(group)))
             finally:
@@ -174,13 +179,8 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
                     and read_outcome(episode, context, "")[0] == "running"):
                 message = advance_to_outcome(simulator, episode, scenario,
                                              t_final)
-            outcome, grasp_t = read_outcome(episode, context, message)
-            shared = dict(
-                outcome=outcome, sim_time_s=round(context.get_time(), 4),
-                catch_time_s=grasp_t, message=message,
-                wall_s=round(time.perf_counter() - t0, 3),
-                p_WO_final=_object_position(episode, context),
-                **read_ending(episode, context, outcome))
+            shared = _row(episode, context, scenario, obj, start, message,
+                          t0)
             for i, (h, d) in enumerate(parameters):
                 if h in waiting:
                     rows[i] = {"h_catch": h, "h_down": d} | shared
@@ -204,19 +204,27 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
     return rows
 
 
-def _run_child(simulator, episode, scenario, source, source_context,
-               cell_parameters, t_final) -> dict:
+def _run_child(simulator, episode, scenario, obj, start, source,
+               source_context, cell_parameters, t_final) -> dict:
     t0 = time.perf_counter()
     source.get_mutable_source_value(source_context).SetFromVector(
         list(cell_parameters))
-    context = simulator.get_context()
     message = advance_to_outcome(simulator, episode, scenario, t_final)
+    return _row(episode, simulator.get_context(), scenario, obj, start,
+                message, t0)
+
+
+def _row(episode, context, scenario, obj, start, message, t0) -> dict:
+    """A cell's result from its episode's final context."""
     outcome, grasp_t = read_outcome(episode, context, message)
+    ending = read_ending(episode, context, outcome)
+    outcome, grasp_fields = judge_grasp(scenario, obj, episode, context,
+                                        outcome, start)
     return dict(outcome=outcome, sim_time_s=round(context.get_time(), 4),
                 catch_time_s=grasp_t, message=message,
                 wall_s=round(time.perf_counter() - t0, 3),
                 p_WO_final=_object_position(episode, context),
-                **read_ending(episode, context, outcome))
+                **ending, **grasp_fields)
 
 
 def _object_position(episode, context) -> list:

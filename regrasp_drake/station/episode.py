@@ -9,6 +9,8 @@ import time
 import numpy as np
 from pydrake.math import RigidTransform
 
+from regrasp_drake.parameter_space import HELD_OUTCOMES
+from regrasp_drake.planning import grasp
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
 from regrasp_drake.station.catch_state_machine import ThrowPerturbation
@@ -21,6 +23,7 @@ from regrasp_drake.station.scenario import (
     Scenario,
     catch_phase_scenario,
     scenario_digest,
+    target_of,
 )
 from regrasp_drake.station.station import (
     EpisodeDiagram,
@@ -28,6 +31,7 @@ from regrasp_drake.station.station import (
     build_episode_diagram,
     continue_with,
     initialize,
+    start_poses,
 )
 from regrasp_drake.world.objects import ObjectSpec
 
@@ -66,14 +70,31 @@ class EpisodeResult:
     held_by_contact: bool | None = None
     slip_m_per_s: float | None = None
     spin_rad_per_s: float | None = None
+    # The grasp (planning/grasp.py): the scenario's target, how the object
+    # lay on the palm before the throw, the grasp it is held in at the end
+    # (None when not held) and its error against the target.
+    target: dict | None = None
+    start_grasp: dict | None = None
+    achieved_grasp: dict | None = None
+    grasp_error: dict | None = None
 
     @property
     def caught(self) -> bool:
+        """Held at the end, in whatever grasp."""
+        return self.outcome in HELD_OUTCOMES
+
+    @property
+    def success(self) -> bool:
+        """Held in the target grasp (for target `any`: held)."""
         return self.outcome == "caught"
 
     def summary(self) -> dict:
         return {
-            "object": self.object, "caught": self.caught,
+            "object": self.object, "success": self.success,
+            "caught": self.caught, "target": self.target,
+            "start_grasp": self.start_grasp,
+            "achieved_grasp": self.achieved_grasp,
+            "grasp_error": self.grasp_error,
             "outcome": self.outcome, "h_catch": self.h_catch,
             "h_down": self.h_down, "sim_time_s": round(self.sim_time_s, 4),
             "wall_s": round(self.wall_s, 3),
@@ -100,6 +121,7 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
     propagates). Requires catch_parameters and an X_WG (any: it is
     replaced)."""
     t0 = time.perf_counter()
+    start = start_grasp(scenario, obj)
 
     def rebuild(later):
         return build_episode_diagram(
@@ -143,6 +165,9 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
         meshcat.PublishRecording()
     context = simulator.get_context()
     outcome, grasp_t = read_outcome(episode, context, message)
+    ending = read_ending(episode, context, outcome)
+    outcome, grasp_fields = judge_grasp(scenario, obj, episode, context,
+                                        outcome, start)
     logs = handover.logs(_read_logs(episode.loggers, context))
     station = episode.station
     h = logs.params[:, -1] if logs.params.shape[1] else (None, None)
@@ -155,7 +180,48 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
         p_WO_final=station.plant.EvalBodyPoseInWorld(
             station.plant.GetMyContextFromRoot(context),
             station.object_body).translation().tolist(),
-        **read_ending(episode, context, outcome))
+        **ending, **grasp_fields)
+
+
+def start_grasp(scenario: Scenario, obj: ObjectSpec) -> grasp.Grasp:
+    """How the object lies on the palm before the throw (the station's
+    start poses)."""
+    X_WP, X_WO = start_poses(scenario, obj)
+    X_PO = X_WP.inverse() @ X_WO
+    return grasp.measure(obj, X_PO.rotation().matrix(), X_PO.translation())
+
+
+def read_grasp(episode: EpisodeDiagram, context, obj: ObjectSpec,
+               start: grasp.Grasp) -> grasp.Grasp:
+    """The grasp the object is in now, from the plant's poses of the palm's
+    palm_surface frame and the object."""
+    station = episode.station
+    plant = station.plant
+    plant_context = plant.GetMyContextFromRoot(context)
+    X_WP = plant.GetFrameByName("palm_surface", station.hand).CalcPoseInWorld(
+        plant_context)
+    X_PO = X_WP.inverse() @ plant.EvalBodyPoseInWorld(plant_context,
+                                                      station.object_body)
+    return grasp.measure(obj, X_PO.rotation().matrix(), X_PO.translation(),
+                         np.asarray(start.R_PO))
+
+
+def judge_grasp(scenario: Scenario, obj: ObjectSpec, episode: EpisodeDiagram,
+                context, outcome: str, start: grasp.Grasp) -> tuple[str, dict]:
+    """The outcome against the scenario's target, and the grasp's fields
+    of a result (EpisodeResult's `target` ... `grasp_error`): a catch the
+    grasp monitor recognized ("caught") becomes "wrong_grasp" when the
+    grasp it ends in is not the target's (planning/grasp.judge)."""
+    target = target_of(scenario)
+    held = outcome == "caught"
+    achieved = read_grasp(episode, context, obj, start) if held else None
+    verdict = grasp.judge(target, obj, start, achieved, held)
+    if held and not verdict.success:
+        outcome = "wrong_grasp"
+    return outcome, {
+        "target": target.as_dict(), "start_grasp": start.as_dict(),
+        "achieved_grasp": None if achieved is None else achieved.as_dict(),
+        "grasp_error": verdict.as_dict()}
 
 
 def release_time(scenario: Scenario) -> float:

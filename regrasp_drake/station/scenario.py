@@ -44,6 +44,7 @@ from pydrake.systems.analysis import (
 from regrasp_drake.errors import InputError, field_error, quote
 from regrasp_drake.input_files import Tagged, dump_yaml, load_yaml, parse_yaml
 from regrasp_drake.parameter_space import H_CATCH_RANGE, H_DOWN_RANGE
+from regrasp_drake.planning.grasp import TARGET_KINDS, Target
 from regrasp_drake.world.robot import (
     ARM_MODEL_NAME,
     HAND_MODEL_NAME,
@@ -314,6 +315,18 @@ class MonitorConfig:
     max_time_s: float = 4.0
 
 
+@dc.dataclass
+class RegraspConfig:
+    # The grasp the catch must end in (planning/grasp.py): "keep" (the
+    # orientation in the palm as before the throw), "flip" (end over end),
+    # "turn" (the wrist's half turn), or "any" (held at all: the paper's
+    # criterion); `offset_mm`, the palm centre's position along the object's
+    # axis from its centre of mass, [mm]. `with_target` also picks the
+    # target's throw; a scenario naming a target keeps the throw it has.
+    target: str = "any"
+    offset_mm: float = 0.0
+
+
 def _plant_config() -> MultibodyPlantConfig:
     return MultibodyPlantConfig(time_step=0.00025, contact_model="point",
                                 discrete_contact_approximation="similar")
@@ -363,6 +376,7 @@ class Scenario:
     sensors: SensorConfig = dc.field(default_factory=SensorConfig)
     catch: CatchConfig = dc.field(default_factory=CatchConfig)
     monitor: MonitorConfig = dc.field(default_factory=MonitorConfig)
+    regrasp: RegraspConfig = dc.field(default_factory=RegraspConfig)
 
     @property
     def time_step_s(self) -> float:
@@ -543,7 +557,30 @@ def validate(s: Scenario) -> Scenario:
     _in_range("monitor.below_palm_m", m.below_palm_m, 0.0, 1.0, " m")
     _in_range("monitor.ground_clearance_m", m.ground_clearance_m, 0.0, 1.0, " m")
     _in_range("monitor.max_time_s", m.max_time_s, 0.5, 60.0, " s")
+    if s.regrasp.target not in TARGET_KINDS:
+        raise field_error("regrasp.target", s.regrasp.target,
+                          f"one of {TARGET_KINDS}")
+    _in_range("regrasp.offset_mm", s.regrasp.offset_mm, -100.0, 100.0, " mm")
     return s
+
+
+def target_of(s: Scenario) -> Target:
+    """The grasp the scenario's catches must end in."""
+    return Target(s.regrasp.target, float(s.regrasp.offset_mm))
+
+
+def with_target(s: Scenario, target: Target) -> Scenario:
+    """`s` aiming for `target`, with the target's throw (the paper's "similar
+    throwing": one throw for every object under a target): the palm toss
+    with its spin for a flip (half a turn end over end by the catch), the
+    same toss without spin for keep and turn (the object flies as it lay;
+    the palm catches it from the start grasp's side, or from the other for
+    a turn); `any` keeps the scenario's throw."""
+    out = copy.deepcopy(s)
+    out.regrasp = RegraspConfig(target.kind, float(target.offset_mm))
+    if target.kind in ("keep", "turn"):
+        out.throw.toss.spin_rad_per_s = 0.0
+    return validate(out)
 
 
 def _check_directives(directives: list[ModelDirective]) -> None:

@@ -1,0 +1,233 @@
+"""The grasp as data, and the regrasp targets a user can ask for.
+
+A grasp is the object's pose in the palm once it is held, X_PO (P: the hand's
+`palm_surface` frame, +x from the wrist to the fingertips, +z the palm normal;
+O: the object's frame, y along its symmetry axis), read as:
+  axis       which way the object's +y points along the palm's y, against
+             the start grasp (how it lay on the palm before the throw):
+             "same" or "reversed";
+  offset_mm  the palm centre's position along the object's own y, from its
+             centre of mass (h_cm), [mm]; positive toward the object's +y
+             end. The start grasp lies at 0 (the object is laid with its
+             centre of mass over the palm's centre) and so does today's
+             plan (the palm under the centre of mass, 10 mm toward the end
+             landing first, which the landing takes back);
+  tilt_deg   the angle between the object's axis and the palm's y (0-90);
+  side       for an object with an off-axis centre of mass (r_cm != 0): the
+             palm direction its offset (sign(r_cm)·x_O) points most along:
+             "fingertips" (+x_P), "wrist" (-x_P), "away" (+z_P, away from
+             the palm) or "into" (-z_P).
+
+A target names the grasp wanted relative to the start grasp: `keep` (the
+same orientation in the palm), `flip` (end over end: half a turn about the
+palm's x, which reverses the axis and turns the side about x), `turn` (the
+wrist's half turn about the palm's normal: the axis reversed, the side
+turned about z), `any` (held at all, the paper's criterion), each with an
+`offset_mm` along the axis. For an object symmetric about its axis (r_cm =
+0) flip and turn are the same grasp: only the axis tells them from keep.
+
+The robot's own sensors see the same: the three infrared sensors along the
+palm's centre line (ir1-ir3, 20 mm apart along y) read the object's
+distance above the palm along its axis, which shows where the palm holds it
+and, for a lopsided object, which end lies where; the bumper at the palm's
+centre says whether the object lies on it. This module reads the grasp from
+the plant's poses instead, exactly.
+"""
+
+import dataclasses as dc
+import math
+
+import numpy as np
+
+from regrasp_drake.errors import InputError, field_error
+from regrasp_drake.world.objects import ObjectSpec
+
+TARGET_KINDS = ("keep", "flip", "turn", "any")
+# The half turns, in the palm frame, that take the start grasp's orientation
+# to each target's.
+_TARGET_ROTATIONS = {
+    "keep": np.eye(3),
+    "flip": np.diag([1.0, -1.0, -1.0]),  # half a turn about the palm's x
+    "turn": np.diag([-1.0, -1.0, 1.0]),  # half a turn about its normal
+}
+SIDES = {"fingertips": (0, 1.0), "wrist": (0, -1.0), "away": (2, 1.0),
+         "into": (2, -1.0)}
+
+# A held grasp meets its target when the axis is the right way round and
+# within this angle of the palm's y, [deg] ...
+AXIS_TOLERANCE_DEG = 20.0
+# ... and the offset within this of the target's, [mm].
+OFFSET_TOLERANCE_MM = 10.0
+# The palm's length along its y (sdf/hand.sdf: 0.115 m), and how far inside
+# its edge the centre of mass must stay for the object not to tip off it,
+# [m] (the outermost pads' centres lie 5 mm inside the edge; their contact
+# patches reach about as far again).
+PALM_LENGTH_M = 0.115
+COM_INSIDE_EDGE_M = 0.02
+
+
+@dc.dataclass(frozen=True)
+class Target:
+    """The grasp a regrasp aims for (module docstring)."""
+    kind: str = "any"
+    offset_mm: float = 0.0
+
+    def __post_init__(self):
+        if self.kind not in TARGET_KINDS:
+            raise field_error("target", self.kind, f"one of {TARGET_KINDS}")
+        if not (isinstance(self.offset_mm, (int, float))
+                and math.isfinite(self.offset_mm)):
+            raise field_error("offset_mm", self.offset_mm, "a finite number")
+
+    def as_dict(self) -> dict:
+        return {"kind": self.kind, "offset_mm": float(self.offset_mm)}
+
+    def label(self) -> str:
+        return f"{self.kind}, {self.offset_mm:+.0f} mm"
+
+
+@dc.dataclass(frozen=True)
+class Grasp:
+    """A grasp read from X_PO (module docstring)."""
+    axis: str
+    offset_mm: float
+    tilt_deg: float
+    side: str | None
+    # The object's orientation in the palm frame (3×3, rows of R_PO).
+    R_PO: tuple
+
+    def as_dict(self) -> dict:
+        out = {"axis": self.axis,
+               "offset_mm": round(float(self.offset_mm), 2),
+               "tilt_deg": round(float(self.tilt_deg), 2)}
+        if self.side is not None:
+            out["side"] = self.side
+        return out
+
+    def label(self) -> str:
+        side = f", {self.side}" if self.side else ""
+        return f"axis {self.axis}{side}, {self.offset_mm:+.0f} mm"
+
+
+def has_side(obj: ObjectSpec) -> bool:
+    """Whether the object's grasp has a side: an off-axis centre of mass."""
+    return obj.r_cm != 0.0
+
+
+def _side_name(v_P) -> str:
+    i = int(np.argmax([abs(v_P[0]), abs(v_P[2])]))
+    axis = (0, 2)[i]
+    sign = 1.0 if v_P[axis] >= 0.0 else -1.0
+    return next(k for k, v in SIDES.items() if v == (axis, sign))
+
+
+def measure(obj: ObjectSpec, R_PO, p_PO, start_R_PO=None) -> Grasp:
+    """The grasp of an object at (R_PO, p_PO) [-, m] in the palm frame;
+    `start_R_PO`, the start grasp's orientation, sets which way is "same"
+    (None: the start itself, the object's +y along the palm's +y)."""
+    R_PO = np.asarray(R_PO, float)
+    p_PO = np.asarray(p_PO, float)
+    y_P = R_PO[:, 1]
+    reference = (np.array([0.0, 1.0, 0.0]) if start_R_PO is None
+                 else np.asarray(start_R_PO, float)[:, 1])
+    same = np.sign(y_P[1]) == np.sign(reference[1])
+    # The palm centre in O: p_OP = -R_OP p_PO.
+    p_OP = -R_PO.T @ p_PO
+    side = (_side_name(R_PO @ (np.sign(obj.r_cm) * np.array([1.0, 0, 0])))
+            if has_side(obj) else None)
+    return Grasp(axis="same" if same else "reversed",
+                 offset_mm=float(1e3 * (p_OP[1] - obj.h_cm)),
+                 tilt_deg=math.degrees(math.acos(min(1.0, abs(y_P[1])))),
+                 side=side, R_PO=tuple(map(tuple, R_PO)))
+
+
+def expected(target: Target, obj: ObjectSpec, start: Grasp):
+    """(y_P, side): the object's axis in the palm frame that `target` asks
+    for, and its side (None for an object without one), from the start
+    grasp."""
+    R = _TARGET_ROTATIONS[target.kind] @ np.asarray(start.R_PO)
+    side = (_side_name(R @ (np.sign(obj.r_cm) * np.array([1.0, 0, 0])))
+            if has_side(obj) else None)
+    return R[:, 1], side
+
+
+@dc.dataclass(frozen=True)
+class Verdict:
+    """How an achieved grasp compares with its target: `success` (held in
+    the target grasp), the axis error (the angle between the object's axis
+    and the palm's y the way round the target asks for, [deg]: over 90 when
+    it lies the wrong way round), the offset error [mm], and whether the
+    side matches (None without a side, or for target `any`)."""
+    success: bool
+    axis_error_deg: float | None
+    offset_error_mm: float | None
+    side_ok: bool | None
+
+    def as_dict(self) -> dict:
+        def rounded(x):
+            return None if x is None else round(float(x), 2)
+        return {"axis_error_deg": rounded(self.axis_error_deg),
+                "offset_error_mm": rounded(self.offset_error_mm),
+                "side_ok": self.side_ok}
+
+
+def judge(target: Target, obj: ObjectSpec, start: Grasp,
+          achieved: Grasp | None, held: bool) -> Verdict:
+    """Whether a held grasp meets `target` (module docstring): the axis the
+    right way round and within AXIS_TOLERANCE_DEG of the palm's y, the side
+    the target's where the object has one, the offset within
+    OFFSET_TOLERANCE_MM of the target's. The tilt is judged against the
+    palm's y, not against the start grasp's turned: an object lies in the
+    hand as its shape and the fingers let it (a lopsided one tilted on the
+    palm), whichever way it arrived. `any`: held."""
+    if achieved is None:
+        return Verdict(False, None, None, None)
+    offset_error = achieved.offset_mm - target.offset_mm
+    if target.kind == "any":
+        return Verdict(held, None, offset_error, None)
+    y_wanted, side_wanted = expected(target, obj, start)
+    y_P = np.asarray(achieved.R_PO)[:, 1]
+    axis_error = math.degrees(math.acos(float(np.clip(
+        y_P[1] * np.sign(y_wanted[1]), -1.0, 1.0))))
+    side_ok = None if side_wanted is None else achieved.side == side_wanted
+    success = (held and axis_error <= AXIS_TOLERANCE_DEG
+               and side_ok is not False
+               and abs(offset_error) <= OFFSET_TOLERANCE_MM)
+    return Verdict(success, axis_error, offset_error, side_ok)
+
+
+def offset_range_mm(obj: ObjectSpec) -> tuple[float, float]:
+    """The offsets a target may ask for, [mm]: the palm centre on the object
+    (within its extent along the axis) and the centre of mass at least
+    COM_INSIDE_EDGE_M inside the palm's edge."""
+    ends = []
+    for piece in obj.pieces:
+        half = _half_extent_y(piece)
+        ends += [piece.center[1] - half, piece.center[1] + half]
+    reach = PALM_LENGTH_M / 2 - COM_INSIDE_EDGE_M
+    lo = max(min(ends), obj.h_cm - reach) - obj.h_cm
+    hi = min(max(ends), obj.h_cm + reach) - obj.h_cm
+    return float(1e3 * lo), float(1e3 * hi)
+
+
+def _half_extent_y(piece) -> float:
+    """A piece's half extent along the object's y, [m]."""
+    if piece.shape == "box":
+        return piece.size[1] / 2
+    if piece.shape == "sphere":
+        return piece.radius
+    if piece.axis == 1:
+        return piece.length / 2 + (piece.radius if piece.shape == "capsule"
+                                   else 0.0)
+    return piece.radius
+
+
+def check_reachable(target: Target, obj: ObjectSpec) -> None:
+    """Refuses a target offset outside `offset_range_mm` (InputError)."""
+    lo, hi = offset_range_mm(obj)
+    if not lo - 1e-9 <= target.offset_mm <= hi + 1e-9:
+        raise InputError(
+            f"object {obj.name}: target offset_mm {target.offset_mm:+g} is "
+            f"out of reach, expected an offset in [{lo:+.1f}, {hi:+.1f}] mm "
+            "(the palm centre on the object, its centre of mass "
+            f"{1e3 * COM_INSIDE_EDGE_M:.0f} mm inside the palm's edge)")
