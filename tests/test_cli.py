@@ -380,6 +380,7 @@ class OutputChecksTest(unittest.TestCase):
                    "grid": ["--object", "table1-row2"],
                    "throw": ["--object", "table1-row2"],
                    "learn": ["--object", "table1-row2"],
+                   "regrasp": ["--object", "table1-row2", "--target", "flip"],
                    "apply": ["--object", "table1-row2"]}
         refused = 0
         for command, outputs in cli._OUTPUTS.items():
@@ -394,7 +395,8 @@ class OutputChecksTest(unittest.TestCase):
                     notes.write_text("my notes\n")
                     target = d if holds in cli._DIRECTORIES else notes
                     argv = [command, *minimal.get(command, []), flag, target]
-                    if command in ("learn", "table1") and dest != "library":
+                    if (command in ("learn", "regrasp", "table1")
+                            and dest != "library"):
                         argv += ["--library", d / "library.yaml"]
                     self._refused(argv, f"{flag}", "expected a new",
                                   kept=[notes])

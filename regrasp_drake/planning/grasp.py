@@ -207,7 +207,7 @@ def offset_range_mm(obj: ObjectSpec) -> tuple[float, float]:
     reach = PALM_LENGTH_M / 2 - COM_INSIDE_EDGE_M
     lo = max(min(ends), obj.h_cm - reach) - obj.h_cm
     hi = min(max(ends), obj.h_cm + reach) - obj.h_cm
-    return float(1e3 * lo), float(1e3 * hi)
+    return round(1e3 * lo, 1), round(1e3 * hi, 1)
 
 
 def _half_extent_y(piece) -> float:

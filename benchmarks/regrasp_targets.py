@@ -1,0 +1,162 @@
+"""Regrasp to a chosen grasp: throws to a catch in the target grasp, per
+target, watching first and on the first throw, and the achieved grasp's
+error.
+
+    .venv/bin/python benchmarks/regrasp_targets.py [--objects NAME ...]
+        [--targets keep:0 flip:30 ...] [--modes watch first-throw]
+        [--max-throws N] [--out models/results/regrasp_targets]
+
+Each (object, target, mode) is the learning phase of `regrasp-drake
+regrasp` (the shipped network picks the first cell, the wavefront search
+the next ones, success = held in the target grasp), capped at --max-throws
+throws. Rows go to <out>.jsonl as they finish (a rerun resumes, refusing
+rows of another scenario); the summary per target to <out>.json and is
+printed. Default: Table 1's five objects, the six targets keep/flip at
+-30, 0, +30 mm (an offset out of an object's reach is recorded as refused),
+both modes.
+"""
+
+# regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
+# (regrasp_drake/numerics.py), so that results match across x86-64 machines.
+import regrasp_drake  # noqa: F401, I001 (first, see above)
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from regrasp_drake.errors import InputError
+from regrasp_drake.learning.flight_predictor import FlightPredictor
+from regrasp_drake.learning.learning_phase import NoCatchPoint, learn
+from regrasp_drake.learning.table1 import object_names
+from regrasp_drake.paths import MODELS_DIR
+from regrasp_drake.planning.grasp import Target, check_reachable
+from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station.mlp_system import load_weights
+from regrasp_drake.station.scenario import (
+    load_scenario,
+    scenario_digest,
+    with_target,
+)
+from regrasp_drake.world.objects import resolve_object
+
+DEFAULT_TARGETS = [f"{kind}:{offset}" for kind in ("keep", "flip")
+                   for offset in (-30, 0, 30)]
+
+
+def parse_target(text: str) -> Target:
+    kind, _, offset = text.partition(":")
+    try:
+        return Target(kind, float(offset or 0.0))
+    except ValueError:
+        raise InputError(f"--targets: got {text!r}, expected KIND:OFFSET_MM, "
+                         "e.g. flip:30") from None
+
+
+def run_one(scenario, obj, model, ik, mode, max_throws, predictor) -> dict:
+    try:
+        check_reachable(Target(scenario.regrasp.target,
+                               scenario.regrasp.offset_mm), obj)
+    except InputError as e:
+        return {"stopped": "refused", "error": str(e), "success": False,
+                "caught": False, "throws": 0}
+    try:
+        result = learn(scenario, obj, model, ik=ik, max_throws=max_throws,
+                       progress=None,
+                       flight_predictor=predictor if mode == "first-throw"
+                       else None)
+    except (NoCatchPoint, InputError) as e:
+        return {"stopped": "no_catch_point", "error": str(e),
+                "success": False, "caught": False,
+                "throws": getattr(e, "throws", 1)}
+    d = result.as_dict()
+    return {k: d[k] for k in ("success", "caught", "throws", "stopped",
+                              "start_grasp", "achieved_grasp", "grasp_error",
+                              "wall_s")} | {
+        "attempts": [a["outcome"] for a in d["attempts"]]}
+
+
+def summarize(rows: list[dict], targets, modes) -> dict:
+    out = {}
+    for target in targets:
+        key = f"{target.kind}:{target.offset_mm:+.0f}"
+        out[key] = {}
+        for mode in modes:
+            mine = [r for r in rows if r["target"] == target.as_dict()
+                    and r["mode"] == mode]
+            done = [r for r in mine if r["stopped"] != "refused"]
+            ok = [r for r in done if r["success"]]
+            errors = [r["grasp_error"] for r in ok]
+            out[key][mode] = {
+                "objects": len(mine), "refused": len(mine) - len(done),
+                "in_target": len(ok),
+                "throws": {r["object"]: (r["throws"] if r["success"] else None)
+                           for r in mine},
+                "on_first_catching_throw": sum(
+                    r["throws"] == (2 if mode == "watch" else 1) for r in ok),
+                "max_offset_error_mm": max(
+                    (abs(e["offset_error_mm"]) for e in errors), default=None),
+                "max_axis_error_deg": max(
+                    (e["axis_error_deg"] for e in errors), default=None),
+            }
+    return out
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--objects", nargs="+")
+    parser.add_argument("--targets", nargs="+", default=DEFAULT_TARGETS)
+    parser.add_argument("--modes", nargs="+", default=["watch", "first-throw"],
+                        choices=("watch", "first-throw"))
+    parser.add_argument("--max-throws", type=int, default=8)
+    parser.add_argument("--out", type=Path,
+                        default=MODELS_DIR / "results" / "regrasp_targets")
+    args = parser.parse_args(argv)
+    torch.set_num_threads(1)
+    targets = [parse_target(t) for t in args.targets]
+    base = load_scenario()
+    model, _ = load_weights(MODELS_DIR / base.catch.weights)
+    predictor = FlightPredictor.load(MODELS_DIR / "flight_predictor.json")
+    ik = ArmIk(base.directives)
+    rows_path = args.out.with_suffix(".jsonl")
+    rows = ([json.loads(line) for line in rows_path.read_text().splitlines()
+             if line.strip()] if rows_path.exists() else [])
+    done = {(r["object"], r["target"]["kind"], r["target"]["offset_mm"],
+             r["mode"]) for r in rows}
+    for target in targets:
+        scenario = with_target(base, target)
+        digest = scenario_digest(scenario)
+        for name in object_names(args.objects):
+            for mode in args.modes:
+                key = (name, target.kind, target.offset_mm, mode)
+                if key in done:
+                    old = next(r for r in rows if (
+                        r["object"], r["target"]["kind"],
+                        r["target"]["offset_mm"], r["mode"]) == key)
+                    if old["scenario_digest"] != digest:
+                        raise SystemExit(f"{rows_path}: row {key} was made "
+                                         "under another scenario; move the "
+                                         "file away to start again")
+                    continue
+                row = {"object": name, "target": target.as_dict(),
+                       "mode": mode, "scenario_digest": digest} | run_one(
+                    scenario, resolve_object(name=name), model, ik, mode,
+                    args.max_throws, predictor)
+                rows.append(row)
+                with rows_path.open("a") as f:
+                    f.write(json.dumps(row) + "\n")
+                print(f"{target.label()} {mode} {name}: "
+                      f"{'in target' if row['success'] else row['stopped']}"
+                      f" after {row['throws']} throws "
+                      f"{row.get('achieved_grasp')}", flush=True)
+    summary = summarize(rows, targets, args.modes)
+    args.out.with_suffix(".json").write_text(json.dumps(summary, indent=1)
+                                             + "\n")
+    print(json.dumps(summary, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
