@@ -18,6 +18,7 @@ from regrasp_drake.parameter_space import (  # noqa: E402
     H_CATCH_VALUES,
     H_DOWN_VALUES,
 )
+from regrasp_drake.planning.grasp import describe_grasp  # noqa: E402
 from regrasp_drake.station.catch_state_machine import Phase  # noqa: E402
 
 
@@ -36,7 +37,9 @@ def plot_episode(result, path: Path) -> Path:
     ax.set_title(f"{result.object}: {result.outcome}"
                  + (f" (h_catch {result.h_catch:.2f} m, h_down "
                     f"{result.h_down:.2f} m)" if result.h_catch is not None
-                    else ""))
+                    else "")
+                 + (f"\nstart: {describe_grasp(result.start_grasp)}"
+                    f"; {result.regrasp_line()}" if result.target else ""))
     axes[1].step(t, logs.bumper, where="post", color="tab:orange")
     axes[1].set_ylabel("tactile bumper")
     axes[1].set_ylim(-0.1, 1.1)

@@ -104,10 +104,6 @@ class Grasp:
             out["side"] = self.side
         return out
 
-    def label(self) -> str:
-        side = f", {self.side}" if self.side else ""
-        return f"axis {self.axis}{side}, {self.offset_mm:+.0f} mm"
-
 
 def has_side(obj: ObjectSpec) -> bool:
     """Whether the object's grasp has a side: an off-axis centre of mass."""
@@ -194,6 +190,37 @@ def judge(target: Target, obj: ObjectSpec, start: Grasp,
                and side_ok is not False
                and abs(offset_error) <= OFFSET_TOLERANCE_MM)
     return Verdict(success, axis_error, offset_error, side_ok)
+
+
+def kind_of(obj: ObjectSpec, start: Grasp, achieved: Grasp) -> str | None:
+    """Which of keep, flip and turn an achieved grasp is (its axis the way
+    round and its side as the target's, whatever its tilt and offset; for
+    an object without a side, a reversed axis is "flip"); None: none of
+    them (the axis kept but the side turned)."""
+    for kind in ("keep", "flip", "turn"):
+        y_wanted, side_wanted = expected(Target(kind), obj, start)
+        if (np.sign(np.asarray(achieved.R_PO)[1][1]) == np.sign(y_wanted[1])
+                and achieved.side == side_wanted):
+            return kind
+    return None
+
+
+def describe(target: dict, achieved: dict | None) -> str:
+    """One line for a regrasp's result, e.g. "flip, +0 mm: achieved flip,
+    +3 mm" (target and achieved: the dicts of Target.as_dict and of an
+    episode's achieved grasp)."""
+    asked = Target(target["kind"], target["offset_mm"]).label()
+    if achieved is None:
+        return f"{asked}: not held"
+    return (f"{asked}: achieved {achieved.get('kind') or 'another grasp'}, "
+            + describe_grasp(achieved))
+
+
+def describe_grasp(g: dict) -> str:
+    """A grasp's dict (Grasp.as_dict) in a few words: "+3 mm, tilt 12°"
+    and its side, if it has one."""
+    side = f", {g['side']}" if g.get("side") else ""
+    return f"{g['offset_mm']:+.0f} mm, tilt {g['tilt_deg']:.0f}°{side}"
 
 
 def offset_range_mm(obj: ObjectSpec) -> tuple[float, float]:

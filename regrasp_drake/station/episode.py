@@ -88,6 +88,10 @@ class EpisodeResult:
         """Held in the target grasp (for target `any`: held)."""
         return self.outcome == "caught"
 
+    def regrasp_line(self) -> str:
+        """e.g. "flip, +0 mm: achieved flip, +3 mm, tilt 12°"."""
+        return grasp.describe(self.target, self.achieved_grasp)
+
     def summary(self) -> dict:
         return {
             "object": self.object, "success": self.success,
@@ -220,7 +224,8 @@ def judge_grasp(scenario: Scenario, obj: ObjectSpec, episode: EpisodeDiagram,
         outcome = "wrong_grasp"
     return outcome, {
         "target": target.as_dict(), "start_grasp": start.as_dict(),
-        "achieved_grasp": None if achieved is None else achieved.as_dict(),
+        "achieved_grasp": None if achieved is None else achieved.as_dict() | {
+            "kind": grasp.kind_of(obj, start, achieved)},
         "grasp_error": verdict.as_dict()}
 
 
