@@ -225,6 +225,22 @@ def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
                      f"{len(points)} moments ({shown})")
 
 
+def shifted_along_axis(plan: CatchPlan, shift_m: float,
+                       ik: ArmIk) -> CatchPlan | None:
+    """`plan` with the palm moved `shift_m` [m] toward the object's +y end
+    (its axis at the catch point, horizontal), the arm's joint angles
+    solved again; None when the moved pose is out of reach."""
+    y = np.array(plan.catch_point.y_W, float)
+    y[2] = 0.0
+    y /= np.linalg.norm(y)
+    X_WG = RigidTransform(plan.X_WG.rotation(),
+                          plan.X_WG.translation() + shift_m * y)
+    result = ik.solve(X_WG, plan.q_grasp)
+    if not result.success:
+        return None
+    return dc.replace(plan, X_WG=X_WG, q_grasp=list(result.q))
+
+
 def reachable_h_down(ik: ArmIk, plan: CatchPlan, h_downs) -> list[bool]:
     """For each h_down (m), whether the arm reaches the lowered pose the
     catch state machine commands under this plan (the same inverse

@@ -85,6 +85,7 @@ from regrasp_drake.parameter_space import (
     cell_parameters,
     nearest_cell,
 )
+from regrasp_drake.planning import grasp
 from regrasp_drake.planning.catch_plan import (
     CatchPoint,
     catch_moments,
@@ -109,6 +110,7 @@ from regrasp_drake.throw_catch import (
     reachable_h_down,
     release_correction,
     seen_flight,
+    shifted_along_axis,
     watch,
 )
 from regrasp_drake.world.objects import ObjectSpec
@@ -216,6 +218,11 @@ def feasible_start(cell, ik: ArmIk, plan: CatchPlan):
 
 
 # ---- the learning phase -------------------------------------------------
+# How often a learning phase moves the palm along the axis after a throw held
+# at another offset than the target's (_Phase.correct_offset).
+MAX_OFFSET_CORRECTIONS = 3
+
+
 class NoCatchPoint(InputError):
     """The watching throw shows no reachable catch point: the learning phase
     cannot go on. Carries the throws made (the watch) and their time."""
@@ -394,6 +401,8 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
         if result is None:  # at release: nothing to catch
             stopped = "no_catch_point"
             break
+        if not result.success and phase.correct_offset(result):
+            continue  # the same cell again, the palm moved along the axis
         phase.search.tell(result.outcome)
         if result.success:
             stopped = "caught"
@@ -467,6 +476,10 @@ class _Phase:
         self.predicted = False  # the plan is the predicted flight's
         self.replanned: dict | None = None
         self.unplanned_sim_s = 0.0  # throws with nothing to catch at release
+        # The palm's shift along the object's axis learned from throws held
+        # at another offset than the target's (`correct_offset`), [m].
+        self.palm_shift_m = 0.0
+        self.offset_corrections = 0
 
     def report(self, line: str) -> None:
         if self.progress is not None:
@@ -547,6 +560,9 @@ class _Phase:
             self.plan = plan_catch(self.scenario, self.obj, self.ik,
                                    flight_from_release(state, t, self.obj,
                                                        self.scenario))
+            if self.palm_shift_m:
+                self.plan = shifted_along_axis(self.plan, self.palm_shift_m,
+                                               self.ik) or self.plan
             if self.search is None:
                 self.report(f"planned at the release (t = {t:.3f} s)")
                 self.start_search(self.plan)
@@ -603,6 +619,32 @@ class _Phase:
                     f"{result.sim_time_s:.2f} s simulated, "
                     f"{result.wall_s:.1f} s wall")
         return result
+
+    def correct_offset(self, result: EpisodeResult) -> bool:
+        """After a throw held in the target's orientation but at another
+        offset along the axis: the palm waits that much the other way from
+        the next throw on, at the same cell (the offset is where the palm
+        waits, not the cell's doing). At most MAX_OFFSET_CORRECTIONS times
+        in a run; False (nothing changed) otherwise, or when the moved
+        palm is out of the arm's reach."""
+        error = result.grasp_error or {}
+        if (result.outcome != "wrong_grasp"
+                or self.offset_corrections >= MAX_OFFSET_CORRECTIONS
+                or error.get("offset_error_mm") is None
+                or error.get("axis_error_deg") is None
+                or error["axis_error_deg"] > grasp.AXIS_TOLERANCE_DEG
+                or error.get("side_ok") is False):
+            return False
+        shift_m = -1e-3 * error["offset_error_mm"]
+        plan = shifted_along_axis(self.plan, shift_m, self.ik)
+        if plan is None:
+            return False
+        self.plan, self.palm_shift_m = plan, self.palm_shift_m + shift_m
+        self.offset_corrections += 1
+        self.report(f"held {error['offset_error_mm']:+.1f} mm from the "
+                    f"target's offset: the palm waits {1e3 * shift_m:+.1f} mm "
+                    "along the axis from the next throw on")
+        return True
 
     def replan(self, result: EpisodeResult, max_throws) -> str | None:
         """First-throw mode, after the predicted flight's plan failed: the
