@@ -7,13 +7,14 @@ error.
         [--max-throws N] [--out models/results/regrasp_targets]
 
 Each (object, target, mode) is the learning phase of `regrasp-drake
-regrasp` (the shipped network picks the first cell, the wavefront search
-the next ones, success = held in the target grasp), capped at --max-throws
-throws. Rows go to <out>.jsonl as they finish (a rerun resumes, refusing
-rows of another scenario); the summary per target to <out>.json and is
-printed. Default: Table 1's five objects, the six targets keep/flip at
--30, 0, +30 mm (an offset out of an object's reach is recorded as refused),
-both modes.
+regrasp` (the shipped network picks the first cell, the offset prior where
+the palm waits along the axis, the wavefront search the next cells, a throw
+held off the target's offset moves the palm; success = held in the target
+grasp), capped at --max-throws throws. Rows go to <out>.jsonl as they
+finish (a rerun resumes, refusing rows of another scenario); the summary
+per target to <out>.json and is printed. Default: Table 1's five objects
+and the six held-out ones, the six targets keep/flip at -30, 0, +30 mm (an
+offset out of an object's reach is recorded as refused), both modes.
 """
 
 # regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
@@ -24,12 +25,12 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
 import torch
 
 from regrasp_drake.errors import InputError
 from regrasp_drake.learning.flight_predictor import FlightPredictor
 from regrasp_drake.learning.learning_phase import NoCatchPoint, learn
+from regrasp_drake.learning.offset_prior import OffsetPrior
 from regrasp_drake.learning.table1 import object_names
 from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning.grasp import Target, check_reachable
@@ -40,7 +41,7 @@ from regrasp_drake.station.scenario import (
     scenario_digest,
     with_target,
 )
-from regrasp_drake.world.objects import resolve_object
+from regrasp_drake.world.objects import load_catalogue, resolve_object
 
 DEFAULT_TARGETS = [f"{kind}:{offset}" for kind in ("keep", "flip")
                    for offset in (-30, 0, 30)]
@@ -55,7 +56,8 @@ def parse_target(text: str) -> Target:
                          "e.g. flip:30") from None
 
 
-def run_one(scenario, obj, model, ik, mode, max_throws, predictor) -> dict:
+def run_one(scenario, obj, model, ik, mode, max_throws, predictor,
+            offset_prior) -> dict:
     try:
         check_reachable(Target(scenario.regrasp.target,
                                scenario.regrasp.offset_mm), obj)
@@ -64,7 +66,7 @@ def run_one(scenario, obj, model, ik, mode, max_throws, predictor) -> dict:
                 "caught": False, "throws": 0}
     try:
         result = learn(scenario, obj, model, ik=ik, max_throws=max_throws,
-                       progress=None,
+                       progress=None, offset_prior=offset_prior,
                        flight_predictor=predictor if mode == "first-throw"
                        else None)
     except (NoCatchPoint, InputError) as e:
@@ -104,6 +106,14 @@ def summarize(rows: list[dict], targets, modes) -> dict:
     return out
 
 
+def object_list(names) -> list[str]:
+    """`names`, or Table 1's five and the held-out objects."""
+    if names:
+        return names
+    return object_names() + [o.name for o in load_catalogue().values()
+                             if o.set == "holdout"]
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--objects", nargs="+")
@@ -111,6 +121,9 @@ def main(argv=None) -> int:
     parser.add_argument("--modes", nargs="+", default=["watch", "first-throw"],
                         choices=("watch", "first-throw"))
     parser.add_argument("--max-throws", type=int, default=8)
+    parser.add_argument("--no-offset-prior", action="store_true",
+                        help="the palm at the target's offset on the first "
+                             "throw (default: models/offset_prior.json)")
     parser.add_argument("--out", type=Path,
                         default=MODELS_DIR / "results" / "regrasp_targets")
     args = parser.parse_args(argv)
@@ -119,6 +132,8 @@ def main(argv=None) -> int:
     base = load_scenario()
     model, _ = load_weights(MODELS_DIR / base.catch.weights)
     predictor = FlightPredictor.load(MODELS_DIR / "flight_predictor.json")
+    offset_prior = (None if args.no_offset_prior
+                    else OffsetPrior.load(MODELS_DIR / "offset_prior.json"))
     ik = ArmIk(base.directives)
     rows_path = args.out.with_suffix(".jsonl")
     rows = ([json.loads(line) for line in rows_path.read_text().splitlines()
@@ -128,7 +143,7 @@ def main(argv=None) -> int:
     for target in targets:
         scenario = with_target(base, target)
         digest = scenario_digest(scenario)
-        for name in object_names(args.objects):
+        for name in object_list(args.objects):
             for mode in args.modes:
                 key = (name, target.kind, target.offset_mm, mode)
                 if key in done:
@@ -143,7 +158,7 @@ def main(argv=None) -> int:
                 row = {"object": name, "target": target.as_dict(),
                        "mode": mode, "scenario_digest": digest} | run_one(
                     scenario, resolve_object(name=name), model, ik, mode,
-                    args.max_throws, predictor)
+                    args.max_throws, predictor, offset_prior)
                 rows.append(row)
                 with rows_path.open("a") as f:
                     f.write(json.dumps(row) + "\n")

@@ -39,7 +39,7 @@ def _add_object_args(p: argparse.ArgumentParser) -> None:
                         "first object unless --object names another)")
 
 
-def _add_scenario_arg(p: argparse.ArgumentParser) -> None:
+def _add_scenario_arg(p: argparse.ArgumentParser, target: bool = True) -> None:
     p.add_argument("--scenario", metavar="F", type=Path,
                    help="a scenario YAML file; with --scenario-name, a file "
                         "of named scenarios (default: "
@@ -50,6 +50,8 @@ def _add_scenario_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenario-text", metavar="YAML",
                    help="fields that replace the scenario's, e.g. "
                         "'{catch: {return_s: 0.4}}'")
+    if not target:
+        return
     p.add_argument("--target", choices=("keep", "flip", "turn", "any"),
                    help="the grasp the catch must end in, relative to how "
                         "the object lies before the throw (keep, flip: end "
@@ -274,6 +276,27 @@ def _add_first_throw_args(p: argparse.ArgumentParser) -> None:
                         "seen then (not with --first-throw)")
 
 
+def _add_offset_prior_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--offset-prior", type=Path, metavar="F",
+                   help="with a --target other than any: the offset prior "
+                        "(how far the catch slides along the axis; default "
+                        "models/offset_prior.json)")
+
+
+def _offset_prior(args, scenario):
+    """The offset prior of --offset-prior (default models/
+    offset_prior.json) for a scenario aiming for a target; None for `any`."""
+    if scenario.regrasp.target == "any":
+        return None
+    from regrasp_drake.learning.offset_prior import OffsetPrior
+    from regrasp_drake.paths import MODELS_DIR
+    path = args.offset_prior or MODELS_DIR / "offset_prior.json"
+    try:
+        return OffsetPrior.load(path)
+    except InputError as e:
+        raise InputError(f"--offset-prior: {e}") from None
+
+
 def _add_search_arg(p: argparse.ArgumentParser) -> None:
     from regrasp_drake.learning.search import SEARCHES
     p.add_argument("--search", choices=SEARCHES, default="wavefront",
@@ -319,6 +342,7 @@ def _cmd_learn(args) -> int:
                    max_throws=args.max_throws,
                    flight_predictor=_flight_predictor(args),
                    at_release=args.at_release, search=args.search,
+                   offset_prior=_offset_prior(args, scenario),
                    meshcat=replay.meshcat if replay else None,
                    on_episode=(lambda r: replay.add_episode(r.sim_time_s))
                    if replay else None)
@@ -445,7 +469,8 @@ def _cmd_table1(args) -> int:
                       maps_dir=args.maps_dir,
                       flight_predictor=flight_predictor,
                       objects=args.objects, max_throws=args.max_throws,
-                      at_release=args.at_release, search=args.search)
+                      at_release=args.at_release, search=args.search,
+                      offset_prior=_offset_prior(args, scenario))
     print(format_markdown(rows))
     write_outputs(rows, args.json, args.markdown)
     return 0
@@ -467,6 +492,35 @@ def _cmd_train_flight(args) -> int:
     report = train_from_dataset(data, scenario, args.out, ik=ArmIk(scenario.directives),
                                 eval_objects=held_out, progress=sys.stderr)
     print(json.dumps(report, indent=1))
+    return 0
+
+
+def _cmd_train_offset(args) -> int:
+    from regrasp_drake.learning.offset_prior import OffsetPrior, collect
+    from regrasp_drake.planning.grasp import Target
+    from regrasp_drake.station.scenario import load_scenario
+    from regrasp_drake.world.objects import load_catalogue
+    _check_workers(args.workers)
+    targets = []
+    for text in args.targets:
+        kind, _, offset = text.partition(":")
+        try:
+            targets.append(Target(kind, float(offset or 0.0)))
+        except ValueError:
+            raise InputError(f"--targets: got {quote(text)}, expected "
+                             "KIND:OFFSET_MM, e.g. flip:30") from None
+    scenario = load_scenario(args.scenario)
+    model = _load_network(args, scenario)
+    objects = args.objects or [o.name for o in load_catalogue().values()
+                               if o.set == "train"]
+    rows = collect(scenario, model, targets, objects,
+                   args.out.with_suffix(".rows.jsonl"), workers=args.workers,
+                   progress=sys.stderr)
+    prior = OffsetPrior.fit(rows)
+    prior.save(args.out)
+    print(json.dumps({k: {"rows": m["rows"], "mean_mm": round(m["mean"], 2),
+                          "loo_abs_error_mm": m["loo_abs_error_mm"]}
+                      for k, m in prior.models.items()}, indent=1))
     return 0
 
 
@@ -561,6 +615,7 @@ def make_parser() -> argparse.ArgumentParser:
                        help="PNG of the search (the paper's Fig. 7)")
         _add_first_throw_args(p)
         _add_search_arg(p)
+        _add_offset_prior_arg(p)
         p.set_defaults(func=_cmd_learn, target_required=command == "regrasp")
 
     p = sub.add_parser("apply", help="the applying phase: one throw, caught "
@@ -636,6 +691,7 @@ def make_parser() -> argparse.ArgumentParser:
                         "holdout-* objects); no paper figures for them")
     _add_first_throw_args(p)
     _add_search_arg(p)
+    _add_offset_prior_arg(p)
     p.set_defaults(func=_cmd_table1)
 
     p = sub.add_parser("train-flight", help="fit the flight predictor (the "
@@ -650,6 +706,29 @@ def make_parser() -> argparse.ArgumentParser:
                         "shipped one is models/flight_predictor.json)")
     _add_out_dir_arg(p)
     p.set_defaults(func=_cmd_train_flight)
+
+    p = sub.add_parser("train-offset", help="fit the offset prior: how far "
+                       "each target's catch slides along the axis, from one "
+                       "catch per training object and target")
+    _add_scenario_arg(p, target=False)
+    p.add_argument("--targets", nargs="+", metavar="KIND:MM",
+                   default=[f"{k}:{o}" for k in ("keep", "flip")
+                            for o in (-30, 0, 30)],
+                   help="the targets (default keep and flip at -30, 0, +30)")
+    p.add_argument("--objects", nargs="+", metavar="NAME",
+                   help="catalogue objects (default: every training object)")
+    p.add_argument("--weights", type=Path, metavar="F",
+                   help="the MLP's weights file (default: the scenario's "
+                        "catch.weights in models/)")
+    p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+                   metavar="N", help="worker processes (default: all cores)")
+    p.add_argument("--out", type=Path, metavar="F",
+                   default=_InOutDir("offset_prior.json"),
+                   help="the prior, its rows F.rows.jsonl beside it (resumed "
+                        "when present); default offset_prior.json in "
+                        "--out-dir; the shipped one is models/offset_prior.json")
+    _add_out_dir_arg(p)
+    p.set_defaults(func=_cmd_train_offset)
     return parser
 
 
@@ -672,12 +751,14 @@ _OUTPUTS = {
     "table1": {"library": "library", "json": "json", "markdown": "table",
                "maps_dir": "maps"},
     "train-flight": {"out": "flight model"},
+    "train-offset": {"out": "offset prior"},
 }
 # What the directories a command makes hold.
 _DIRECTORIES = ("data set", "maps", "outputs")
 # The arguments that name a file or directory a command reads (and `apply`'s
 # --library); --out-dir holds the outputs given no path.
-_INPUTS = ("object_file", "scenario", "weights", "flight_model", "data")
+_INPUTS = ("object_file", "scenario", "weights", "flight_model", "data",
+           "offset_prior")
 # Worker processes beyond this many per core only slow a run down.
 _WORKERS_PER_CORE = 4
 
@@ -804,6 +885,8 @@ _OURS = {
                 lambda path: _refusal(_load_weights, path)),
     "flight model": ("a flight predictor",
                      lambda path: _refusal(_load_flight_model, path)),
+    "offset prior": ("an offset prior",
+                     lambda path: _refusal(_load_offset_prior, path)),
 }
 
 
@@ -859,6 +942,11 @@ def _load_weights(path):
 def _load_flight_model(path):
     from regrasp_drake.learning.flight_predictor import FlightPredictor
     return FlightPredictor.load(path)
+
+
+def _load_offset_prior(path):
+    from regrasp_drake.learning.offset_prior import OffsetPrior
+    return OffsetPrior.load(path)
 
 
 def _replay_reason(path: Path) -> str | None:

@@ -357,7 +357,7 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
           meshcat=None, on_episode=None, progress=sys.stderr,
           flight_predictor=None, at_release: bool = False,
           search: str = "wavefront", prior_maps=None,
-          prior_features=None) -> LearningResult:
+          prior_features=None, offset_prior=None) -> LearningResult:
     """The learning phase on one object (see the module's docstring).
 
     search: the order of the cells after the network's, "wavefront" (the
@@ -366,6 +366,12 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
     entries' network features (entries, 5) for the prior's feature kernel
     (None: all maps weigh alike); both None: the shipped training maps and
     features, `search.load_prior_maps`. Only with "map-prior".
+
+    offset_prior: a learning.offset_prior.OffsetPrior: the palm waits, from
+    the first catching throw on, the other way from the slide along the
+    axis it predicts for the object under the scenario's target (None: at
+    the target's offset; later throws correct it from what they show
+    either way, `_Phase.correct_offset`).
 
     flight_predictor: a learning.flight_predictor.FlightPredictor for the
     first-throw mode (no watching throw), or None. at_release: the
@@ -384,7 +390,8 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
         max_throws=max_throws, library_path=library_path)
     phase = _Phase(scenario, obj, model, ik or ArmIk(scenario.directives), prior=prior,
                    at_release=at_release, meshcat=meshcat,
-                   on_episode=on_episode, progress=progress)
+                   on_episode=on_episode, progress=progress,
+                   offset_prior=offset_prior)
     # Throw 1 watches (or the flight is predicted); the offline stage plans
     # the catch and the network's cell starts the search. At release, throw
     # 1 plans its own catch, and starts the search, when it lets go.
@@ -459,7 +466,7 @@ class _Phase:
 
     def __init__(self, scenario: Scenario, obj: ObjectSpec, model: CatchMlp,
                  ik: ArmIk, *, prior, at_release: bool, meshcat, on_episode,
-                 progress):
+                 progress, offset_prior=None):
         self.scenario, self.obj, self.model, self.ik = scenario, obj, model, ik
         self.prior = prior  # (maps, features) of the map prior, or None
         self.at_release = at_release
@@ -480,6 +487,7 @@ class _Phase:
         # at another offset than the target's (`correct_offset`), [m].
         self.palm_shift_m = 0.0
         self.offset_corrections = 0
+        self.offset_prior = offset_prior
 
     def report(self, line: str) -> None:
         if self.progress is not None:
@@ -530,9 +538,20 @@ class _Phase:
 
     def start_search(self, plan: CatchPlan) -> None:
         """The network's cell for `plan` (moved to an h_down the arm reaches,
-        `feasible_start`) and a new search from it; the catches use `plan`."""
-        self.plan = plan
+        `feasible_start`) and a new search from it; the catches use `plan`,
+        the palm moved along the axis by what the offset prior predicts (the
+        first time) or the throws so far showed."""
+        first = self.features is None
         self.features = network_features(self.obj, plan.catch_point)
+        if first and self.offset_prior is not None:
+            slide_mm = self.offset_prior.predict(target_of(self.scenario),
+                                                 self.features)
+            self.palm_shift_m = -1e-3 * slide_mm
+            self.report(f"offset prior: the catch slides {slide_mm:+.1f} mm "
+                        "along the axis; the palm waits the other way")
+        if self.palm_shift_m:
+            plan = shifted_along_axis(plan, self.palm_shift_m, self.ik) or plan
+        self.plan = plan
         self.raw, self.prediction = predict(self.model, self.features)
         start, reach = feasible_start(nearest_cell(*self.prediction), self.ik,
                                       plan)

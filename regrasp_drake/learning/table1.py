@@ -41,7 +41,7 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
                map_workers: int = 2, progress=sys.stderr,
                flight_predictor=None, objects=None,
                max_throws=None, at_release: bool = False,
-               search: str = "wavefront") -> list[dict]:
+               search: str = "wavefront", offset_prior=None) -> list[dict]:
     """Runs the learning phase on table1-row1 … row5 (or on `objects`, names
     of other catalogue objects); returns one row each. With maps_dir: also
     each object's full success map (resumable JSON lines) and a PNG of it
@@ -49,7 +49,8 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
     the first-throw mode (no watching throw); at_release: the first-throw
     mode that plans each throw at its release; search: the learning phase's
     search after the network's cell, "wavefront" (the paper's) or
-    "map-prior" (learning/search.py)."""
+    "map-prior" (learning/search.py); offset_prior: learn's, for a
+    regrasp target."""
     if library_path is not None:
         load_library(library_path)  # a malformed file: refused before any throw
     rows = []
@@ -66,7 +67,7 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
                            library_path=library_path, progress=progress,
                            flight_predictor=flight_predictor,
                            max_throws=max_throws, at_release=at_release,
-                           search=search)
+                           search=search, offset_prior=offset_prior)
         except NoCatchPoint as e:  # the watching throw shows no catch point
             rows.append({"row": row, "object": obj.name,
                          "paper_object_id": obj_id,
