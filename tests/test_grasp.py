@@ -11,10 +11,15 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
 from regrasp_drake.errors import InputError
 from regrasp_drake.learning.dataset import generate
+from regrasp_drake.learning.flight_predictor import FlightPredictor
+from regrasp_drake.learning.learning_phase import learn
+from regrasp_drake.learning.offset_prior import OffsetPrior
+from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning import grasp
 from regrasp_drake.planning.grasp import Target
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.episode import read_grasp, start_grasp
+from regrasp_drake.station.mlp_system import load_weights
 from regrasp_drake.station.scenario import (
     load_scenario,
     scenario_yaml,
@@ -146,6 +151,35 @@ class TargetRefusedTest(unittest.TestCase):
     def test_a_bad_kind(self):
         with self.assertRaises(InputError):
             Target("spin")
+
+
+class RegraspCaughtTest(unittest.TestCase):
+    """One regrasp per throw kind, on the first throw with the shipped
+    network and offset prior: held in the target grasp, judged at the end of
+    the simulated episode."""
+
+    def test_each_throw_kind(self):
+        base = load_scenario()
+        model, _ = load_weights(MODELS_DIR / base.catch.weights)
+        prior = OffsetPrior.load(MODELS_DIR / "offset_prior.json")
+        predictor = FlightPredictor.load(MODELS_DIR / "flight_predictor.json")
+        for name, target in (("table1-row2", Target("flip")),
+                             ("table1-row4", Target("keep", 10.0))):
+            with self.subTest(object=name, target=target):
+                scenario = with_target(base, target)
+                result = learn(scenario, resolve_object(name=name), model,
+                               max_throws=1, progress=None,
+                               flight_predictor=predictor,
+                               offset_prior=prior)
+                self.assertTrue(result.success, result.as_dict()["attempts"])
+                self.assertEqual(result.throws, 1)
+                achieved = result.achieved_grasp
+                self.assertEqual(achieved["kind"], target.kind)
+                self.assertLessEqual(
+                    abs(achieved["offset_mm"] - target.offset_mm),
+                    grasp.OFFSET_TOLERANCE_MM)
+                self.assertLessEqual(achieved["tilt_deg"],
+                                     grasp.AXIS_TOLERANCE_DEG)
 
 
 class TargetInProvenanceTest(unittest.TestCase):
