@@ -163,8 +163,8 @@ class RegraspCaughtTest(unittest.TestCase):
         model, _ = load_weights(MODELS_DIR / base.catch.weights)
         prior = OffsetPrior.load(MODELS_DIR / "offset_prior.json")
         predictor = FlightPredictor.load(MODELS_DIR / "flight_predictor.json")
-        for name, target in (("table1-row2", Target("flip")),
-                             ("table1-row4", Target("keep", 10.0))):
+        for name, target in (("holdout-dumbbell-d300", Target("flip")),
+                             ("holdout-mallet-d120", Target("keep"))):
             with self.subTest(object=name, target=target):
                 scenario = with_target(base, target)
                 result = learn(scenario, resolve_object(name=name), model,
