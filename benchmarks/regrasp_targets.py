@@ -7,10 +7,10 @@ error.
         [--max-throws N] [--out models/results/regrasp_targets]
 
 Each (object, target, mode) is the learning phase of `regrasp-drake
-regrasp` (the shipped network picks the first cell, the offset prior where
-the palm waits along the axis, the wavefront search the next cells, a throw
-held off the target's offset moves the palm; success = held in the target
-grasp), capped at --max-throws throws. Rows go to <out>.jsonl as they
+regrasp` (the shipped network picks the first cell, the wavefront search
+the next ones, a throw held off the target's offset moves the palm; with
+--offset-prior the palm starts against the prior's slide; success = held in
+the target grasp), capped at --max-throws throws. Rows go to <out>.jsonl as they
 finish (a rerun resumes, refusing rows of another scenario); the summary
 per target to <out>.json and is printed. Default: Table 1's five objects
 and the six held-out ones, the six targets keep/flip at -30, 0, +30 mm (an
@@ -21,6 +21,7 @@ offset out of an object's reach is recorded as refused), both modes.
 # (regrasp_drake/numerics.py), so that results match across x86-64 machines.
 import regrasp_drake  # noqa: F401, I001 (first, see above)
 import argparse
+import copy
 import json
 import sys
 from pathlib import Path
@@ -80,21 +81,24 @@ def run_one(scenario, obj, model, ik, mode, max_throws, predictor,
         "attempts": [a["outcome"] for a in d["attempts"]]}
 
 
-def summarize(rows: list[dict], targets, modes) -> dict:
+def summarize(rows: list[dict], targets, modes, level: float) -> dict:
     out = {}
     for target in targets:
         key = f"{target.kind}:{target.offset_mm:+.0f}"
         out[key] = {}
         for mode in modes:
             mine = [r for r in rows if r["target"] == target.as_dict()
-                    and r["mode"] == mode]
+                    and r["mode"] == mode and r.get("level", 0.0) == level]
             done = [r for r in mine if r["stopped"] != "refused"]
             ok = [r for r in done if r["success"]]
             errors = [r["grasp_error"] for r in ok]
             out[key][mode] = {
                 "objects": len(mine), "refused": len(mine) - len(done),
                 "in_target": len(ok),
-                "throws": {r["object"]: (r["throws"] if r["success"] else None)
+                "share_in_target": (round(len(ok) / len(done), 3)
+                                    if done else None),
+                "throws": {f"{r['object']}#{r.get('trial', 0)}":
+                           (r["throws"] if r["success"] else None)
                            for r in mine},
                 "on_first_catching_throw": sum(
                     r["throws"] == (2 if mode == "watch" else 1) for r in ok),
@@ -103,6 +107,18 @@ def summarize(rows: list[dict], targets, modes) -> dict:
                 "max_axis_error_deg": max(
                     (e["axis_error_deg"] for e in errors), default=None),
             }
+    return out
+
+
+def noisy(scenario, level: float, trial: int):
+    """`scenario` with release noise of `level` (noise_curve.py's levels),
+    seeded by the trial; unchanged at level 0."""
+    if not level:
+        return scenario
+    out = copy.deepcopy(scenario)
+    out.throw.noise.release_time_std_s = 0.002 * level
+    out.throw.noise.joint_velocity_std_rad_per_s = 0.03 * level
+    out.throw.noise.seed = trial
     return out
 
 
@@ -121,9 +137,16 @@ def main(argv=None) -> int:
     parser.add_argument("--modes", nargs="+", default=["watch", "first-throw"],
                         choices=("watch", "first-throw"))
     parser.add_argument("--max-throws", type=int, default=8)
-    parser.add_argument("--no-offset-prior", action="store_true",
-                        help="the palm at the target's offset on the first "
-                             "throw (default: models/offset_prior.json)")
+    parser.add_argument("--offset-prior", action="store_true",
+                        help="the palm against models/offset_prior.json's "
+                             "slide from the first throw (default: at the "
+                             "target's offset, as the command line)")
+    parser.add_argument("--noise-level", type=float, default=0.0,
+                        help="release noise as benchmarks/noise_curve.py's "
+                             "level k: release time std k x 2 ms, joint "
+                             "velocities k x 0.03 rad/s (default 0)")
+    parser.add_argument("--trials", type=int, default=1,
+                        help="noise seeds per (object, target, mode)")
     parser.add_argument("--out", type=Path,
                         default=MODELS_DIR / "results" / "regrasp_targets")
     args = parser.parse_args(argv)
@@ -132,41 +155,45 @@ def main(argv=None) -> int:
     base = load_scenario()
     model, _ = load_weights(MODELS_DIR / base.catch.weights)
     predictor = FlightPredictor.load(MODELS_DIR / "flight_predictor.json")
-    offset_prior = (None if args.no_offset_prior
-                    else OffsetPrior.load(MODELS_DIR / "offset_prior.json"))
+    offset_prior = (OffsetPrior.load(MODELS_DIR / "offset_prior.json")
+                    if args.offset_prior else None)
     ik = ArmIk(base.directives)
     rows_path = args.out.with_suffix(".jsonl")
     rows = ([json.loads(line) for line in rows_path.read_text().splitlines()
              if line.strip()] if rows_path.exists() else [])
-    done = {(r["object"], r["target"]["kind"], r["target"]["offset_mm"],
-             r["mode"]) for r in rows}
-    for target in targets:
-        scenario = with_target(base, target)
+    def row_key(r):
+        return (r["object"], r["target"]["kind"], r["target"]["offset_mm"],
+                r["mode"], r.get("level", 0.0), r.get("trial", 0))
+
+    done = {row_key(r) for r in rows}
+    jobs = [(target, name, mode, trial) for target in targets
+            for name in object_list(args.objects) for mode in args.modes
+            for trial in range(args.trials)]
+    for target, name, mode, trial in jobs:
+        scenario = noisy(with_target(base, target), args.noise_level, trial)
         digest = scenario_digest(scenario)
-        for name in object_list(args.objects):
-            for mode in args.modes:
-                key = (name, target.kind, target.offset_mm, mode)
-                if key in done:
-                    old = next(r for r in rows if (
-                        r["object"], r["target"]["kind"],
-                        r["target"]["offset_mm"], r["mode"]) == key)
-                    if old["scenario_digest"] != digest:
-                        raise SystemExit(f"{rows_path}: row {key} was made "
-                                         "under another scenario; move the "
-                                         "file away to start again")
-                    continue
-                row = {"object": name, "target": target.as_dict(),
-                       "mode": mode, "scenario_digest": digest} | run_one(
-                    scenario, resolve_object(name=name), model, ik, mode,
-                    args.max_throws, predictor, offset_prior)
-                rows.append(row)
-                with rows_path.open("a") as f:
-                    f.write(json.dumps(row) + "\n")
-                print(f"{target.label()} {mode} {name}: "
-                      f"{'in target' if row['success'] else row['stopped']}"
-                      f" after {row['throws']} throws "
-                      f"{row.get('achieved_grasp')}", flush=True)
-    summary = summarize(rows, targets, args.modes)
+        key = (name, target.kind, target.offset_mm, mode,
+               args.noise_level, trial)
+        if key in done:
+            old = next(r for r in rows if row_key(r) == key)
+            if old["scenario_digest"] != digest:
+                raise SystemExit(f"{rows_path}: row {key} was made "
+                                 "under another scenario; move the "
+                                 "file away to start again")
+            continue
+        row = {"object": name, "target": target.as_dict(),
+               "mode": mode, "level": args.noise_level,
+               "trial": trial, "scenario_digest": digest} | run_one(
+            scenario, resolve_object(name=name), model, ik, mode,
+            args.max_throws, predictor, offset_prior)
+        rows.append(row)
+        with rows_path.open("a") as f:
+            f.write(json.dumps(row) + "\n")
+        print(f"{target.label()} {mode} {name}: "
+              f"{'in target' if row['success'] else row['stopped']}"
+              f" after {row['throws']} throws "
+              f"{row.get('achieved_grasp')}", flush=True)
+    summary = summarize(rows, targets, args.modes, args.noise_level)
     args.out.with_suffix(".json").write_text(json.dumps(summary, indent=1)
                                              + "\n")
     print(json.dumps(summary, indent=1))

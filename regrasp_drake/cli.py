@@ -278,21 +278,21 @@ def _add_first_throw_args(p: argparse.ArgumentParser) -> None:
 
 def _add_offset_prior_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("--offset-prior", type=Path, metavar="F",
-                   help="with a --target other than any: the offset prior "
-                        "(how far the catch slides along the axis; default "
-                        "models/offset_prior.json)")
+                   help="with a --target other than any: the palm waits "
+                        "against the slide this offset prior predicts (e.g. "
+                        "models/offset_prior.json; default none: its shifted "
+                        "palms land where the grasp is not converged in the "
+                        "step, docs/regrasp.md)")
 
 
 def _offset_prior(args, scenario):
-    """The offset prior of --offset-prior (default models/
-    offset_prior.json) for a scenario aiming for a target; None for `any`."""
-    if scenario.regrasp.target == "any":
+    """The offset prior of --offset-prior for a scenario aiming for a
+    target; None without one, or for `any`."""
+    if scenario.regrasp.target == "any" or args.offset_prior is None:
         return None
     from regrasp_drake.learning.offset_prior import OffsetPrior
-    from regrasp_drake.paths import MODELS_DIR
-    path = args.offset_prior or MODELS_DIR / "offset_prior.json"
     try:
-        return OffsetPrior.load(path)
+        return OffsetPrior.load(args.offset_prior)
     except InputError as e:
         raise InputError(f"--offset-prior: {e}") from None
 
