@@ -10,8 +10,8 @@ steps (throw 0.25 ms, flight and catch 1 ms) and at 0.0625 / 0.25 ms; then
 one catch at each, at the network's cell (the learning phase's first
 catching throw; with --offset-prior, the palm against the prior's slide).
 Printed and written to <out>.json: the catch point's difference (mm, ms),
-both outcomes and the achieved grasps' offset difference (mm). Targets (issue 43): catch point within
-10 mm and 4 ms, achieved offset within 5 mm.
+both outcomes and the achieved grasps' offset difference (mm). Targets
+(issue 43): catch point within 10 mm and 4 ms, achieved offset within 5 mm.
 """
 
 # regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
