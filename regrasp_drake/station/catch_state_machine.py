@@ -137,11 +137,13 @@ class ThrowPerturbation:
 
 def quintic_from(tau, T, q0, v0, a0, q1):
     """The quintic from (q0, v0, a0) at τ = 0 to q1 at rest (zero velocity
-    and acceleration) at τ = 1, τ = t / T: its (q, v, v̇) at τ (held at q1
-    after τ = 1)."""
-    if tau >= 1.0:
+    and acceleration) at τ = 1, τ = t / T: its (q, v, v̇) at τ, a number or
+    a column (k × 1: rows of k × n), held at q1 after τ = 1."""
+    scalar = np.ndim(tau) == 0
+    if scalar and tau >= 1.0:
         return q1, np.zeros_like(q1), np.zeros_like(q1)
-    tau = max(tau, 0.0)
+    done = None if scalar else tau >= 1.0
+    tau = max(tau, 0.0) if scalar else np.maximum(tau, 0.0)
     c1, c2 = v0 * T, 0.5 * a0 * T * T
     A = q1 - q0 - c1 - c2
     B = -c1 - 2.0 * c2
@@ -152,7 +154,10 @@ def quintic_from(tau, T, q0, v0, a0, q1):
     q = q0 + tau * (c1 + tau * (c2 + tau * (c3 + tau * (c4 + tau * c5))))
     dq = c1 + tau * (2 * c2 + tau * (3 * c3 + tau * (4 * c4 + tau * 5 * c5)))
     ddq = 2 * c2 + tau * (6 * c3 + tau * (12 * c4 + tau * 20 * c5))
-    return q, dq / T, ddq / (T * T)
+    if done is None:
+        return q, dq / T, ddq / (T * T)
+    return (np.where(done, q1, q), np.where(done, 0.0, dq / T),
+            np.where(done, 0.0, ddq / (T * T)))
 
 
 def preshape_closures(catch) -> np.ndarray:
@@ -168,8 +173,9 @@ def preshape_closures(catch) -> np.ndarray:
 
 
 def _quintic(tau):
-    """Time law s(τ), s'(τ), s''(τ) with zero end velocity and acceleration."""
-    tau = min(max(tau, 0.0), 1.0)
+    """Time law s(τ), s'(τ), s''(τ) with zero end velocity and acceleration
+    (τ a number or an array)."""
+    tau = np.clip(tau, 0.0, 1.0) if np.ndim(tau) else min(max(tau, 0.0), 1.0)
     s = tau**3 * (10 - 15 * tau + 6 * tau**2)
     ds = 30 * tau**2 * (1 - tau) ** 2
     dds = 60 * tau * (1 - tau) * (1 - 2 * tau)
@@ -256,6 +262,12 @@ class CatchStateMachine(LeafSystem):
         self._dt = scenario.plant_config.time_step
         if self._dt > 0.0:
             self._ticks_per_sample = round(scenario.sensors.period_s / self._dt)
+            # The references of the steps to the next sensor sample
+            # (`_update`), one row per step.
+            self._table = self.DeclareDiscreteState(np.tile(
+                np.concatenate([q_arm, v_arm, a_arm,
+                                *self._hand_reference(x0, 0.0)]),
+                self._ticks_per_sample))
             self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
             self.DeclareStateOutputPort("arm_desired_state", self._arm_ref)
             self.DeclareStateOutputPort("arm_desired_acceleration",
@@ -280,29 +292,63 @@ class CatchStateMachine(LeafSystem):
             prerequisites_of_calc={self.xd_ticket()})
 
     # ---- references ----------------------------------------------------
+    def _references(self, x, ticks):
+        """The references the updates at plant steps `ticks` write for their
+        next steps, in state x: one row per tick, the arm's (q, v), its v̇
+        and the fingers' (q, v). Every row is what `_arm_reference` and
+        `_hand_reference` give at that time, computed for all rows at once
+        (palm toss) or row by row (the finger throw's references switch on
+        the time)."""
+        t = np.asarray(ticks, float)[:, None] * self._dt + self._dt
+        if self._toss:
+            return np.hstack([*self._arm_reference(x, t),
+                              *self._hand_reference(x, t)])
+        return np.array([np.concatenate([
+            *self._arm_reference(x, float(tk)),
+            *self._hand_reference(x, float(tk))]) for tk in t[:, 0]])
+
     def _arm_reference(self, x, t):
-        """The arm's (q, v, v̇) reference at time t in state x."""
+        """The arm's (q, v, v̇) reference at time t in state x: at a number,
+        three 6-vectors; at a column of k times (the palm toss's
+        `_references`), three k × 6 arrays."""
         if x[_PHASE] == _THROW:
-            tau = min(t - self._t_throw, self._throw_s)
+            tau = np.minimum(t - self._t_throw, self._throw_s)
             return self._throw_reference(tau)
         T = x[_T]
         tau = (t - x[_T0]) / T
-        if tau >= 1.0:  # the segment is done: rest at its end
-            return x[_QB], self._zeros6, self._zeros6
+        if np.all(tau >= 1.0):  # the segment is done: rest at its end
+            shape = np.shape(tau)[:1] + (6,)
+            return (np.broadcast_to(x[_QB], shape), np.zeros(shape),
+                    np.zeros(shape))
         if ((self._toss and x[_PHASE] == _MOVE)  # from the toss's motion
                 or (self._cushion and x[_PHASE] == _RETURN)):  # the lowering's
             return quintic_from(tau, T, x[_QA], x[_V0], x[_A0], x[_QB])
         s, ds, dds = _quintic(tau)
         dq = x[_QB] - x[_QA]
-        return x[_QA] + s * dq, ds / T * dq, dds / T**2 * dq
+        q, v, a = x[_QA] + s * dq, ds / T * dq, dds / T**2 * dq
+        if np.ndim(tau) == 0:
+            return q, v, a
+        done = tau >= 1.0
+        return (np.where(done, x[_QB], q), np.where(done, 0.0, v),
+                np.where(done, 0.0, a))
 
     def _throw_reference(self, tau):
-        """The throw's (q, v, v̇) at throw time tau, with its noise pulse."""
-        q = self._spline.value(tau).ravel()
-        v = self._spline_v.value(tau).ravel()
-        a = self._spline_a.value(tau).ravel()
+        """The throw's (q, v, v̇) at throw time tau (a number, or a column
+        of k: k × 6 arrays), with its noise pulse."""
+        if np.ndim(tau) == 0:
+            q = self._spline.value(tau).ravel()
+            v = self._spline_v.value(tau).ravel()
+            a = self._spline_a.value(tau).ravel()
+        else:
+            taus = tau[:, 0].tolist()
+            q, v, a = (spline.vector_values(taus).T for spline in (
+                self._spline, self._spline_v, self._spline_a))
         if self._noise is not None:
-            dq, dv, da = self._noise.pulse(tau, self._tau_release)
+            dq, dv, da = (np.array(d) for d in zip(*(
+                self._noise.pulse(float(u), self._tau_release)
+                for u in np.ravel(tau))))
+            if np.ndim(tau) == 0:
+                dq, dv, da = dq[0], dv[0], da[0]
             q, v, a = q + dq, v + dv, a + da
         return q, v, a
 
@@ -312,7 +358,8 @@ class CatchStateMachine(LeafSystem):
         settling and throwing), open (from the release), or closed (from
         t_close once catching). Palm toss: open while settling and
         throwing; to the pre-shaped cage after the throw, and from there to
-        closed from t_close once catching."""
+        closed from t_close once catching (t a number, or, for the palm
+        toss, a column of k: k × 10 arrays)."""
         if not self._toss:
             if x[_PHASE] <= _THROW and t < self._t_release:
                 return self._ramp(self._open, self._hold, t - x[_T_CLOSE])
@@ -321,21 +368,26 @@ class CatchStateMachine(LeafSystem):
                                   t - self._t_release)
             return self._ramp(self._open, self._closed, t - x[_T_CLOSE])
         if x[_PHASE] <= _THROW:
-            return self._open, self._zeros_hand
+            shape = np.shape(t)[:1] + self._open.shape
+            return np.broadcast_to(self._open, shape), np.zeros(shape)
         if x[_PHASE] < _LOWER:
             return self._ramp(self._open, self._preshape,
                               t - self._t_throw_end)
         return self._ramp(self._preshape, self._closed, t - x[_T_CLOSE])
 
     def _ramp(self, q_from, q_to, elapsed):
+        """From q_from toward q_to at the fingers' speed, `elapsed` s after
+        the start (a number, or a column of k: k × n arrays)."""
         delta = q_to - q_from
-        if self._speed * elapsed >= np.max(np.abs(delta)):  # arrived
-            return q_to, self._zeros_hand
-        travel = np.minimum(np.abs(delta), self._speed * max(elapsed, 0.0))
+        arrived = self._speed * elapsed >= np.max(np.abs(delta))
+        if np.all(arrived):
+            shape = np.shape(elapsed)[:1] + q_to.shape
+            return np.broadcast_to(q_to, shape), np.zeros(shape)
+        travel = np.minimum(np.abs(delta), self._speed * np.maximum(elapsed, 0.0))
         moving = np.abs(delta) > travel
         q = q_from + np.sign(delta) * travel
         v = np.where(moving, np.sign(delta) * self._speed, 0.0)
-        return q, v
+        return np.where(arrived, q_to, q), np.where(arrived, 0.0, v)
 
     def _calc_arm_state(self, context, output: BasicVector):
         q, v, _ = self._arm_reference(
@@ -359,31 +411,47 @@ class CatchStateMachine(LeafSystem):
         """Counts this machine's steps in `context` (copied from a machine
         of another plant step, at a sensor sample: station.continue_with) at
         this machine's step, so that its transitions stay on the sensors'
-        samples. (On a continuous plant it makes its transitions at every
-        update: nothing to count.)"""
+        samples, and makes its table of references at this step. (On a
+        continuous plant it makes its transitions at every update: nothing
+        to count.)"""
         if self._dt == 0.0:
             return
         x = context.get_discrete_state(self._state).value().copy()
-        x[_TICK] = round(context.get_time() / self._dt)
+        tick = round(context.get_time() / self._dt)
+        x[_TICK] = tick
         context.SetDiscreteState(self._state, x)
+        # The table of references (not copied: its size is the other
+        # step's) for the steps from the last sample on.
+        sample = tick - tick % self._ticks_per_sample
+        context.SetDiscreteState(self._table, self._references(
+            x, np.arange(sample, sample + self._ticks_per_sample)).ravel())
 
     # ---- transitions ---------------------------------------------------
     def _update(self, context, discrete_state):
         x = context.get_discrete_state(self._state).value().copy()
-        t = context.get_time()
+        tick = int(x[_TICK])
+        k = tick % self._ticks_per_sample
         status = EventStatus.Succeeded()
-        if int(x[_TICK]) % self._ticks_per_sample == 0:
-            status = self._transition(context, x, t)
+        if k == 0:
+            status = self._transition(context, x, context.get_time())
         x[_TICK] += 1
         discrete_state.set_value(self._state, x)
         if self._dt == 0.0:  # references computed from the time
             return status
-        # The references for the next step.
-        q, v, a = self._arm_reference(x, t + self._dt)
-        discrete_state.set_value(self._arm_ref, np.concatenate([q, v]))
-        discrete_state.set_value(self._acc_ref, a)
-        discrete_state.set_value(self._hand_ref, np.concatenate(
-            self._hand_reference(x, t + self._dt)))
+        # The references for the next step: at a sensor sample, those of
+        # every step up to the next sample (nothing they read changes in
+        # between), kept as a table.
+        if k == 0:
+            table = self._references(
+                x, np.arange(tick, tick + self._ticks_per_sample))
+            discrete_state.set_value(self._table, table.ravel())
+        else:
+            table = context.get_discrete_state(self._table).value().reshape(
+                self._ticks_per_sample, -1)
+        row = table[k]
+        discrete_state.set_value(self._arm_ref, row[:12])
+        discrete_state.set_value(self._acc_ref, row[12:18])
+        discrete_state.set_value(self._hand_ref, row[18:])
         return status
 
     def _transition(self, context, x, t):

@@ -138,7 +138,7 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
         # What build_episode_diagram takes then (the MLP's otherwise).
         catch_parameters = (scenario.catch.h_catch_m, scenario.catch.h_down_m)
     key = THROWS.key(scenario, obj, throw_number, catch_parameters, meshcat)
-    handover = THROWS.resume(key, rebuild, X_WG, catch_parameters)
+    handover = THROWS.resume(key, rebuild, X_WG, catch_parameters, ik)
     if handover is not None:  # this throw's release, simulated before
         build_s = time.perf_counter() - t0
     else:
@@ -322,6 +322,10 @@ class ThrowCache:
         self.enabled = True
         # key -> (simulator, episode, the catch's scenario), oldest first
         self._kept = {}
+        # (key, watching) -> (ik, the catch's diagram built for it): a
+        # diagram holds no state (that is in each simulator's context), so
+        # the later episodes of a throw go on in the same one.
+        self._diagrams = {}
         self.hits = 0
 
     def key(self, scenario, obj, throw_number, catch_parameters, meshcat):
@@ -343,15 +347,21 @@ class ThrowCache:
         self._kept[key] = (*handover.before, handover.now[2])
         while len(self._kept) > self.size:
             del self._kept[next(iter(self._kept))]
+        self._diagrams = {k: v for k, v in self._diagrams.items()
+                          if k[0] in self._kept}
 
-    def resume(self, key, rebuild, X_WG, catch_parameters):
+    def resume(self, key, rebuild, X_WG, catch_parameters, ik):
         """A Handover that goes on from the kept throw of `key` with the
-        diagram `rebuild(later)` builds, its grasp pose and catch
-        parameters set; None when there is none."""
+        diagram `rebuild(later)` builds (built once per throw, watching or
+        not, and arm IK `ik`), its grasp pose and catch parameters set;
+        None when there is none."""
         if key is None or key not in self._kept:
             return None
         simulator, episode, later = self._kept[key]
-        other = rebuild(later)
+        built = self._diagrams.get((key, X_WG is None))
+        if built is None or built[0] is not ik:
+            built = self._diagrams[key, X_WG is None] = (ik, rebuild(later))
+        other = built[1]
         target = continue_with(simulator, episode, other, later)
         # continue_with copied the kept throw's pose and parameters.
         context = target.get_mutable_context()
@@ -368,6 +378,7 @@ class ThrowCache:
 
     def clear(self) -> None:
         self._kept.clear()
+        self._diagrams.clear()
 
 
 THROWS = ThrowCache()

@@ -19,6 +19,7 @@ from pydrake.geometry import (
     SceneGraphInspector,
     Sphere,
 )
+from pydrake.math import RigidTransform
 from pydrake.multibody.plant import ContactResults, MultibodyPlant
 from pydrake.multibody.tree import Frame
 from pydrake.systems.framework import LeafSystem
@@ -96,57 +97,19 @@ def trace_ray(
 
 
 def _sphere_hits(o, d, center, radius):
-    """Entry distance along rays (origins o, unit directions d: N×3, in the
-    sphere's frame) into a ball: 0 for an origin inside, inf for a miss."""
-    oc = o - center
-    b = np.einsum("ij,ij->i", oc, d)
-    c = np.einsum("ij,ij->i", oc, oc) - radius * radius
+    """Entry distance along rays (origins o, unit directions d: N×3) into
+    balls (centers: 3 or M×3, radii: scalar or M, in the rays' frame): N, or
+    N×M for M balls; 0 for an origin inside, inf for a miss."""
+    oc = o[:, None, :] - np.atleast_2d(center)[None]
+    b = np.einsum("nmk,nk->nm", oc, d)
+    r2 = np.square(radius)
+    c = np.einsum("nmk,nmk->nm", oc, oc) - r2
     disc = b * b - c
-    with np.errstate(invalid="ignore"):
-        root = np.sqrt(disc)
-    entry = -b - root
-    hit = (disc >= 0) & (-b + root >= 0)
-    return np.where(c <= 0, 0.0, np.where(hit, np.maximum(entry, 0.0), np.inf))
-
-
-def _slab_interval(o, d, half):
-    """Per ray, the parameter interval [enter, leave] inside the slabs
-    |x_k| <= half_k for the axes k given by `half` (nan: that axis unbounded)."""
-    enter = np.full(len(o), -np.inf)
-    leave = np.full(len(o), np.inf)
-    for k, h in enumerate(half):
-        if np.isnan(h):
-            continue
-        ok, dk = o[:, k], d[:, k]
-        parallel = np.abs(dk) < 1e-15
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t1 = (-h - ok) / dk
-            t2 = (h - ok) / dk
-        lo = np.where(parallel, np.where(np.abs(ok) <= h, -np.inf, np.inf),
-                      np.minimum(t1, t2))
-        hi = np.where(parallel, np.where(np.abs(ok) <= h, np.inf, -np.inf),
-                      np.maximum(t1, t2))
-        enter = np.maximum(enter, lo)
-        leave = np.minimum(leave, hi)
-    return enter, leave
-
-
-def _cylinder_interval(o, d, radius, half_length):
-    """Per ray, [enter, leave] inside a solid cylinder along z."""
-    enter, leave = _slab_interval(o, d, (np.nan, np.nan, half_length))
-    a = d[:, 0] ** 2 + d[:, 1] ** 2
-    b = o[:, 0] * d[:, 0] + o[:, 1] * d[:, 1]
-    c = o[:, 0] ** 2 + o[:, 1] ** 2 - radius * radius
-    disc = b * b - a * c
-    parallel = a < 1e-30
-    with np.errstate(divide="ignore", invalid="ignore"):
-        root = np.sqrt(np.maximum(disc, 0.0))
-        lo = np.where(parallel, np.where(c <= 0, -np.inf, np.inf), (-b - root) / a)
-        hi = np.where(parallel, np.where(c <= 0, np.inf, -np.inf), (-b + root) / a)
-    miss = ~parallel & (disc < 0)
-    lo = np.where(miss, np.inf, lo)
-    hi = np.where(miss, -np.inf, hi)
-    return np.maximum(enter, lo), np.minimum(leave, hi)
+    root = np.sqrt(np.maximum(disc, 0.0))
+    hit = (disc >= 0) & (root - b >= 0)
+    entry = np.where(c <= 0, 0.0,
+                     np.where(hit, np.maximum(-b - root, 0.0), np.inf))
+    return entry if np.ndim(center) == 2 else entry[:, 0]
 
 
 def _interval_entry(enter, leave):
@@ -156,27 +119,113 @@ def _interval_entry(enter, leave):
     return np.where(hit, np.maximum(enter, 0.0), np.inf)
 
 
+def _slab(o, d, half):
+    """Per ray and slab, the parameter interval [lo, hi] inside |x| <= half
+    (o, d: the rays' coordinate along the slab's axis; half broadcast)."""
+    inside = np.abs(o) <= half
+    parallel = np.abs(d) < 1e-15
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1 = (-half - o) / d
+        t2 = (half - o) / d
+    lo = np.where(parallel, np.where(inside, -np.inf, np.inf),
+                  np.minimum(t1, t2))
+    hi = np.where(parallel, np.where(inside, np.inf, -np.inf),
+                  np.maximum(t1, t2))
+    return lo, hi
+
+
+class _CastTargets:
+    """Closed-form ray casting against boxes, spheres, cylinders and capsules
+    fixed in one frame F: every ray against every shape in a handful of
+    array operations (a capsule is its cylinder and its two end balls)."""
+
+    def __init__(self, shapes):
+        """`shapes`: (X_FG, shape) pairs, every shape a Drake Box, Sphere,
+        Cylinder or Capsule."""
+        spheres, boxes, cylinders = [], [], []
+        for X_FG, shape in shapes:
+            R_GF = X_FG.rotation().matrix().T
+            p_FG = X_FG.translation()
+            if isinstance(shape, Sphere):
+                spheres.append((p_FG, shape.radius()))
+            elif isinstance(shape, Box):
+                boxes.append((R_GF, p_FG, shape.size() / 2.0))
+            else:
+                half = shape.length() / 2.0
+                cylinders.append((R_GF, p_FG, shape.radius(), half))
+                if isinstance(shape, Capsule):
+                    z_F = R_GF[2]
+                    spheres += [(p_FG + half * z_F, shape.radius()),
+                                (p_FG - half * z_F, shape.radius())]
+
+        def stack(rows, k):
+            return np.array([row[k] for row in rows], float)
+        self._spheres = spheres and (stack(spheres, 0), stack(spheres, 1))
+        self._boxes = boxes and (stack(boxes, 0), stack(boxes, 1),
+                                 stack(boxes, 2))
+        self._cylinders = cylinders and (
+            stack(cylinders, 0), stack(cylinders, 1), stack(cylinders, 2),
+            stack(cylinders, 3))
+
+    @staticmethod
+    def supports(shape) -> bool:
+        return isinstance(shape, (Box, Sphere, Cylinder, Capsule))
+
+    def entry(self, o, d) -> np.ndarray:
+        """The distance along each ray (origins o, unit directions d: N×3,
+        in F) to where it enters the first shape: 0 for an origin inside
+        one, inf for a miss."""
+        entries = [np.full(len(o), np.inf)]
+        if self._spheres:
+            entries.append(_sphere_hits(o, d, *self._spheres).min(axis=1))
+        for shapes, interval in ((self._boxes, self._box_interval),
+                                 (self._cylinders, self._cylinder_interval)):
+            if shapes:
+                R_GF, p_FG = shapes[0], shapes[1]
+                o_G = np.einsum("mij,mnj->mni", R_GF, o[None] - p_FG[:, None])
+                d_G = np.einsum("mij,nj->mni", R_GF, d)
+                entries.append(_interval_entry(
+                    *interval(o_G, d_G, *shapes[2:])).min(axis=0))
+        return np.minimum.reduce(entries)
+
+    @staticmethod
+    def _box_interval(o, d, half):
+        """[enter, leave] of rays (M×N×3, each box's frame) in the boxes
+        (half sizes M×3)."""
+        lo, hi = _slab(o, d, half[:, None, :])
+        return lo.max(axis=2), hi.min(axis=2)
+
+    @staticmethod
+    def _cylinder_interval(o, d, radius, half_length):
+        """[enter, leave] of rays (M×N×3, each cylinder's frame, its axis
+        z) in the solid cylinders (radii and half lengths: M)."""
+        enter, leave = _slab(o[..., 2], d[..., 2], half_length[:, None])
+        a = d[..., 0] ** 2 + d[..., 1] ** 2
+        b = o[..., 0] * d[..., 0] + o[..., 1] * d[..., 1]
+        c = o[..., 0] ** 2 + o[..., 1] ** 2 - (radius * radius)[:, None]
+        disc = b * b - a * c
+        parallel = a < 1e-30
+        with np.errstate(divide="ignore", invalid="ignore"):
+            root = np.sqrt(np.maximum(disc, 0.0))
+            lo = np.where(parallel, np.where(c <= 0, -np.inf, np.inf),
+                          (-b - root) / a)
+            hi = np.where(parallel, np.where(c <= 0, np.inf, -np.inf),
+                          (-b + root) / a)
+        miss = ~parallel & (disc < 0)
+        lo = np.where(miss, np.inf, lo)
+        hi = np.where(miss, -np.inf, hi)
+        return np.maximum(enter, lo), np.minimum(leave, hi)
+
+
 def ray_entry(shape, o, d) -> np.ndarray:
     """The distance along each ray (origins o, unit directions d: N×3, in the
     shape's frame G) to where it enters a Drake Box, Sphere, Cylinder or
     Capsule: 0 for an origin inside it, inf for a miss. Exact (closed form).
     Returns None for other shapes."""
-    if isinstance(shape, Sphere):
-        return _sphere_hits(o, d, np.zeros(3), shape.radius())
-    if isinstance(shape, Box):
-        return _interval_entry(*_slab_interval(o, d, shape.size() / 2.0))
-    if isinstance(shape, Cylinder):
-        return _interval_entry(*_cylinder_interval(
-            o, d, shape.radius(), shape.length() / 2.0))
-    if isinstance(shape, Capsule):
-        # A capsule is the union of its cylinder and its two end balls.
-        half = shape.length() / 2.0
-        r = shape.radius()
-        return np.minimum.reduce([
-            _interval_entry(*_cylinder_interval(o, d, r, half)),
-            _sphere_hits(o, d, np.array([0.0, 0.0, half]), r),
-            _sphere_hits(o, d, np.array([0.0, 0.0, -half]), r)])
-    return None
+    if not _CastTargets.supports(shape):
+        return None
+    return _CastTargets([(RigidTransform(), shape)]).entry(
+        np.asarray(o, float), np.asarray(d, float))
 
 
 class InfraredSensors(LeafSystem):
@@ -230,17 +279,19 @@ class InfraredSensors(LeafSystem):
         self._levels = levels
         self._ranges_m = [float(r) for r in ranges_m]
         self._target_ids = frozenset(target_geometry_ids)
-        # Closed-form targets: (geometry frame id, X_FG, shape).
+        # Closed-form targets, per geometry frame F: (F's id, _CastTargets).
         self._cast = []
         if inspector is not None:
-            traced = []
+            traced, by_frame = [], {}
             for geometry_id in target_geometry_ids:
                 shape = inspector.GetShape(geometry_id)
-                if ray_entry(shape, np.zeros((1, 3)), np.ones((1, 3))) is None:
+                if not _CastTargets.supports(shape):
                     traced.append(geometry_id)
                     continue
-                self._cast.append((inspector.GetFrameId(geometry_id),
-                                   inspector.GetPoseInFrame(geometry_id), shape))
+                by_frame.setdefault(inspector.GetFrameId(geometry_id), []).append(
+                    (inspector.GetPoseInFrame(geometry_id), shape))
+            self._cast = [(frame_id, _CastTargets(shapes))
+                          for frame_id, shapes in by_frame.items()]
             self._target_ids = frozenset(traced)
         self._bound = None
         if target_bound is not None:
@@ -304,8 +355,15 @@ class InfraredSensors(LeafSystem):
                 query_object, p_WS[live], z_W[live])
         if self._target_ids:
             distances = np.minimum(distances, self._trace_distances(query_object))
-        return np.array([quantize(s, r, self._levels)
-                         for s, r in zip(distances, self._ranges_m)], float)
+        return self._quantize(distances)
+
+    def _quantize(self, distances_m: np.ndarray) -> np.ndarray:
+        """`quantize` of every sensor's distance (m) at its range."""
+        with np.errstate(invalid="ignore"):
+            level = np.floor(distances_m / self._ranges * self._levels)
+        in_range = distances_m < self._ranges  # False for inf and nan
+        return np.where(in_range, np.clip(level, 0, self._levels),
+                        float(self._levels))
 
     def _rays(self, query_object):
         """Every sensor's ray in the world: origins and unit directions (N×3)."""
@@ -322,15 +380,12 @@ class InfraredSensors(LeafSystem):
         """Closed-form distances along the rays (p_WS, z_W: N×3) to the first
         cast target (inf: none)."""
         distances = np.full(len(p_WS), np.inf)
-        poses = {}
-        for frame_id, X_FG, shape in self._cast:
-            if frame_id not in poses:
-                poses[frame_id] = query_object.GetPoseInWorld(frame_id)
-            X_GW = (poses[frame_id] @ X_FG).inverse()
-            R_GW = X_GW.rotation().matrix()
-            o = p_WS @ R_GW.T + X_GW.translation()
-            d = z_W @ R_GW.T
-            distances = np.minimum(distances, ray_entry(shape, o, d))
+        for frame_id, targets in self._cast:
+            X_WF = query_object.GetPoseInWorld(frame_id)
+            R_WF = X_WF.rotation().matrix()
+            # Row vectors: p_F = R_FW (p_W - p_WF) is (p_W - p_WF) R_WF.
+            distances = np.minimum(distances, targets.entry(
+                (p_WS - X_WF.translation()) @ R_WF, z_W @ R_WF))
         return distances
 
     def _trace_distances(self, query_object):

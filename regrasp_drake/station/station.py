@@ -718,7 +718,11 @@ def continue_with(simulator: Simulator, episode: EpisodeDiagram,
         context_a = a.GetMyContextFromRoot(source)
         context_b = b.GetMyMutableContextFromRoot(context)
         for i in range(context_a.num_discrete_state_groups()):
-            context_b.SetDiscreteState(i, context_a.get_discrete_state(i).value())
+            value = context_a.get_discrete_state(i).value()
+            # A group sized by the plant step (the catch state machine's
+            # table of references) is made again by `continue_at`, below.
+            if context_b.get_discrete_state(i).size() == value.size:
+                context_b.SetDiscreteState(i, value)
         for i in range(context_a.num_abstract_states()):
             context_b.get_mutable_abstract_state(i).SetFrom(
                 context_a.get_abstract_state(i))
