@@ -7,11 +7,11 @@ data sets made under targets (`regrasp-drake dataset --target KIND
 
 Per data set (its maps.npz; a cell succeeds when the catch ends held in
 the target grasp): the share of each map's cells that succeed (mean, min,
-max), how many maps lie in 10-90 %, the best constant cell's success rate
-over the maps, the mean label, and the shipped network's (models/
-catch_mlp.pt, trained on `any`) cell's rate: the cell it picks from each
-object's features, scored on that object's map. The `any` data set's rows
-are restricted to the objects the others hold, so that all compare alike.
+max), how many maps lie in 10-90 % and how many are empty, the best
+constant cell's success rate over the maps, and the shipped network's
+(models/catch_mlp.pt, trained on `any`) cell's rate: the cell it picks from
+each object's features, scored on that object's map. Beside each, the same
+figures of the shipped `any` data set on the same objects.
 """
 
 # regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
@@ -64,19 +64,16 @@ def main(argv=None) -> int:
                         default=MODELS_DIR / "results" / "target_maps.json")
     args = parser.parse_args(argv)
     model, _ = load_weights(MODELS_DIR / "catch_mlp.pt")
-    sets = dict(s.split("=", 1) for s in args.sets)
-    loaded = {name: load(Path(d)) for name, d in sets.items()}
-    objects = sorted(set.intersection(*(set(m["objects"])
-                                        for m in loaded.values())))
     shipped = load(args.any)
-    keep = [shipped["objects"].index(o) for o in objects]
-    loaded = {"any": {k: (np.asarray(v)[keep] if k != "objects"
-                          else objects) for k, v in shipped.items()}} | {
-        name: {k: (np.asarray(v)[[m["objects"].index(o) for o in objects]]
-                   if k != "objects" else objects) for k, v in m.items()}
-        for name, m in loaded.items()}
-    out = {"objects": objects} | {name: figures(m, model)
-                                  for name, m in loaded.items()}
+    out = {}
+    for name, directory in (s.split("=", 1) for s in args.sets):
+        maps = load(Path(directory))
+        rows = [shipped["objects"].index(o) for o in maps["objects"]]
+        same = {"objects": maps["objects"], "caught": shipped["caught"][rows],
+                "features": shipped["features"][rows]}
+        out[name] = {"objects": maps["objects"],
+                     "target": figures(maps, model),
+                     "any_same_objects": figures(same, model)}
     args.out.write_text(json.dumps(out, indent=1) + "\n")
     print(json.dumps(out, indent=1))
     return 0
