@@ -71,7 +71,8 @@ def _shade_phases(ax, t, phase):
 
 
 # The colour of each of ENDINGS in the maps below.
-ENDING_COLOURS = {"caught": "#2ca02c", "in_fingers": "#9467bd",
+ENDING_COLOURS = {"caught": "#2ca02c", "wrong_grasp": "#bcbd22",
+                  "in_fingers": "#9467bd",
                   "on_arm": "#d62728", "loose": "#ff7f0e",
                   "below_palm": "#1f77b4", "near_ground": "#17becf",
                   "failed": "#8c564b", "other": "#7f7f7f"}

@@ -14,7 +14,7 @@ from regrasp_drake.parameter_space import H_CATCH_VALUES, H_DOWN_VALUES  # noqa:
 
 OUTCOME_COLOURS = {"caught": "tab:green", "dropped": "tab:red",
                    "timeout": "tab:orange", "landed": "tab:purple",
-                   "failed": "tab:gray"}
+                   "failed": "tab:gray", "wrong_grasp": "tab:olive"}
 
 
 def plot_search(attempts, start_cell, path, *, title: str = "",
