@@ -75,8 +75,7 @@ def main(argv=None) -> int:
     ik = ArmIk(base.directives)
     rows = []
     for text in args.targets:
-        kind, _, offset = text.partition(":")
-        target = Target(kind, float(offset or 0.0))
+        target = Target.parse(text)
         shipped = with_target(base, target)
         fine = with_catch_time_step(with_time_step(
             shipped, FINE_THROW_STEP_S), FINE_CATCH_STEP_S)

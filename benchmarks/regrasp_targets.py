@@ -48,15 +48,6 @@ DEFAULT_TARGETS = [f"{kind}:{offset}" for kind in ("keep", "flip")
                    for offset in (-30, 0, 30)]
 
 
-def parse_target(text: str) -> Target:
-    kind, _, offset = text.partition(":")
-    try:
-        return Target(kind, float(offset or 0.0))
-    except ValueError:
-        raise InputError(f"--targets: got {text!r}, expected KIND:OFFSET_MM, "
-                         "e.g. flip:30") from None
-
-
 def run_one(scenario, obj, model, ik, mode, max_throws, predictor,
             offset_prior) -> dict:
     try:
@@ -151,7 +142,7 @@ def main(argv=None) -> int:
                         default=MODELS_DIR / "results" / "regrasp_targets")
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
-    targets = [parse_target(t) for t in args.targets]
+    targets = [Target.parse(t) for t in args.targets]
     base = load_scenario()
     model, _ = load_weights(MODELS_DIR / base.catch.weights)
     predictor = FlightPredictor.load(MODELS_DIR / "flight_predictor.json")

@@ -501,14 +501,7 @@ def _cmd_train_offset(args) -> int:
     from regrasp_drake.station.scenario import load_scenario
     from regrasp_drake.world.objects import load_catalogue
     _check_workers(args.workers)
-    targets = []
-    for text in args.targets:
-        kind, _, offset = text.partition(":")
-        try:
-            targets.append(Target(kind, float(offset or 0.0)))
-        except ValueError:
-            raise InputError(f"--targets: got {quote(text)}, expected "
-                             "KIND:OFFSET_MM, e.g. flip:30") from None
+    targets = [Target.parse(text) for text in args.targets]
     scenario = load_scenario(args.scenario)
     model = _load_network(args, scenario)
     objects = args.objects or [o.name for o in load_catalogue().values()

@@ -85,6 +85,18 @@ class Target:
     def label(self) -> str:
         return f"{self.kind}, {self.offset_mm:+.0f} mm"
 
+    @staticmethod
+    def parse(text: str, flag: str = "--targets") -> "Target":
+        """A target written KIND:OFFSET_MM (e.g. flip:30; KIND alone: +0
+        mm); InputError naming `flag` otherwise."""
+        kind, _, offset = text.partition(":")
+        try:
+            return Target(kind, float(offset or 0.0))
+        except ValueError:
+            raise InputError(f"{flag}: got {text!r}, expected KIND:OFFSET_MM "
+                             f"with KIND one of {TARGET_KINDS}, e.g. "
+                             "flip:30") from None
+
 
 @dc.dataclass(frozen=True)
 class Grasp:
