@@ -33,10 +33,15 @@ from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.plots import plot_episode
 from regrasp_drake.station.episode import run_episode
 from regrasp_drake.station.mlp_system import load_weights
-from regrasp_drake.station.replay import make_meshcat, save_html
 from regrasp_drake.planning.grasp import Target, check_reachable
+from regrasp_drake.station.replay import make_meshcat
 from regrasp_drake.station.scenario import load_scenario, target_of, with_target
-from regrasp_drake.throw_catch import plan_catch, watch
+from regrasp_drake.throw_catch import (
+    episode_caption,
+    plan_catch,
+    save_replay,
+    watch,
+)
 from regrasp_drake.world.objects import resolve_object
 
 
@@ -76,7 +81,8 @@ def main() -> int:
                          catch_parameters=(h_catch, h_down), meshcat=meshcat,
                          throw_number=2)
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    save_html(meshcat, args.out)
+    save_replay(meshcat, args.out, result, plan, ik,
+                caption=episode_caption(result))
     plot_episode(result, args.out.with_suffix(".png"))
     print(json.dumps(result.summary() | {
         "network_output": [round(x, 4) for x in raw],

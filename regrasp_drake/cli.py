@@ -154,13 +154,15 @@ def _cmd_catch(args) -> int:
     check_catch_parameters(args.h_catch, args.h_down,
                            names=("--h-catch", "--h-down"))
     scenario, obj, _, _ = _scenario_and_object(args)
-    from regrasp_drake.station.replay import make_meshcat, save_html
-    from regrasp_drake.throw_catch import catch_once
+    from regrasp_drake.planning.ik import ArmIk
+    from regrasp_drake.station.replay import make_meshcat
+    from regrasp_drake.throw_catch import catch_once, episode_caption, save_replay
     meshcat = make_meshcat() if args.html is not None else None
     result, plan = catch_once(scenario, obj, h_catch=args.h_catch,
                               h_down=args.h_down, meshcat=meshcat)
     if args.html is not None:
-        save_html(meshcat, args.html)
+        save_replay(meshcat, args.html, result, plan,
+                    ArmIk(scenario.directives), caption=episode_caption(result))
     if args.plot is not None:
         from regrasp_drake.plots import plot_episode
         plot_episode(result, args.plot)

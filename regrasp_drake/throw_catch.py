@@ -14,6 +14,7 @@ from types import SimpleNamespace
 import numpy as np
 import torch
 from pydrake.common.eigen_geometry import Quaternion
+from pydrake.geometry import Box, Rgba, Sphere
 from pydrake.math import RigidTransform, RotationMatrix
 
 from regrasp_drake.errors import InputError
@@ -28,13 +29,14 @@ from regrasp_drake.planning.catch_plan import (
 from regrasp_drake.planning.free_flight import flight_from_release
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
-from regrasp_drake.station.catch_state_machine import lowered_pose
+from regrasp_drake.station.catch_state_machine import Phase, lowered_pose
 from regrasp_drake.station.episode import (
     EpisodeResult,
     release_time,
     run_episode,
     start_grasp,
 )
+from regrasp_drake.station.replay import draw_path, framing_view, save_html
 from regrasp_drake.station.scenario import Scenario, target_of
 from regrasp_drake.world.objects import ObjectSpec
 
@@ -360,3 +362,66 @@ def catch_once(scenario: Scenario, obj: ObjectSpec, *, h_catch: float,
         at_release=release_correction(scenario, obj, ik, plan,
                                       (h_catch, h_down)))
     return result, plan
+
+
+# The replay's camera looks at the throw from this direction (from the target
+# toward the camera): near the palm toss's spin axis (+Wx: the object turns
+# about it at 5.5 rad/s in table1-row2's flight), so that the flip is seen
+# face on, turned 30 deg toward +Wy so that the arm, which reaches from the
+# origin toward +Wx -Wy, is seen from its side, and 15 deg above.
+REPLAY_DIRECTION_W = (0.84, 0.48, 0.26)
+# The catch view frames a cube of this half side around the catch, [m].
+CATCH_VIEW_HALF_SIDE_M = 0.15
+# The slow-motion button plays from this long before the planned catch, [s].
+SLOW_MOTION_LEAD_S = 0.3
+# The palm's visual box (sdf/hand.sdf): its centre in the palm frame, its
+# size, [m].
+PALM_BOX_P_PB = (0.045, 0.0, 0.0)
+PALM_BOX_SIZE_M = (0.09, 0.115, 0.02)
+
+
+def episode_caption(result: EpisodeResult) -> str:
+    """What a catching throw's replay says of itself: the object, the
+    outcome and, if caught, when the grasp was recognized; then the regrasp
+    (the target and the grasp achieved, `EpisodeResult.regrasp_line`)."""
+    caption = f"{result.object}: {result.outcome}"
+    if result.catch_time_s is not None:
+        caption += f" at {result.catch_time_s:.2f} s"
+    if result.target is not None:
+        caption += f"; {result.regrasp_line()}"
+    return caption
+
+
+def save_replay(meshcat, path, result: EpisodeResult, plan: CatchPlan,
+                ik: ArmIk, caption: str | None = None) -> str:
+    """Writes the replay of a catching throw recorded on `meshcat`
+    (`run_episode`) to path (replay.save_html): the object's logged path,
+    the planned catch point (a sphere) and the palm's pose while it waited
+    (a translucent box on the palm, from the logged arm state at the end of
+    WAIT), opening on the whole throw ("flight" view) with a second view on
+    the hand at the catch ("catch"), a slow-motion button from
+    SLOW_MOTION_LEAD_S before the planned catch, and `caption` shown over
+    the scene. Returns path."""
+    p_WO = result.logs.object_state[4:7]
+    draw_path(meshcat, "/replay/object_path", p_WO)
+    p_WC = plan.catch_point.p_WO
+    meshcat.SetObject("/replay/catch_point", Sphere(0.015),
+                      Rgba(0.9, 0.0, 0.6, 1.0))
+    meshcat.SetTransform("/replay/catch_point", RigidTransform(p_WC))
+    waited = np.flatnonzero(result.logs.phase == int(Phase.WAIT))
+    framed = [p_WO, np.zeros((3, 1))]  # the path and the robot's base
+    if waited.size:
+        X_WP = ik.palm_pose(result.logs.arm_state[:6, waited[-1]])
+        meshcat.SetObject("/replay/wait_pose", Box(*PALM_BOX_SIZE_M),
+                          Rgba(0.1, 0.8, 0.3, 0.4))
+        meshcat.SetTransform("/replay/wait_pose",
+                             X_WP @ RigidTransform(PALM_BOX_P_PB))
+        framed.append(X_WP.translation()[:, None])
+    corners = np.array(np.meshgrid(*[[-1, 1]] * 3)).reshape(3, -1)
+    views = [
+        framing_view("flight", np.hstack(framed), REPLAY_DIRECTION_W),
+        framing_view("catch", p_WC[:, None]
+                     + CATCH_VIEW_HALF_SIDE_M * corners, REPLAY_DIRECTION_W)]
+    return save_html(meshcat, path, views=views, caption=caption,
+                     slow_motion_from_s=plan.catch_point.t_s
+                     - SLOW_MOTION_LEAD_S)

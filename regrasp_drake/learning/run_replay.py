@@ -21,7 +21,6 @@ Typical use:
 
 import base64
 import math
-import os
 import re
 import struct
 
@@ -30,7 +29,7 @@ from pydrake.common.eigen_geometry import Quaternion
 from pydrake.geometry import MeshcatAnimation
 from pydrake.math import RigidTransform
 
-from regrasp_drake.station.replay import make_meshcat
+from regrasp_drake.station.replay import make_meshcat, write_html
 
 
 class RunReplay:
@@ -70,10 +69,7 @@ class RunReplay:
             raise RuntimeError("no episode added to the replay")
         self.meshcat.StopRecording()
         self.meshcat.SetAnimation(self._animation)
-        path = os.fspath(path)
-        with open(path, "w", encoding="utf-8") as f:
-            f.write(self.meshcat.StaticHtml())
-        return path
+        return write_html(self.meshcat, path)
 
 
 def _copy_path(animation: MeshcatAnimation, track_set: dict, offset: int,
