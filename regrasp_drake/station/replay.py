@@ -82,7 +82,8 @@ def framing_view(
     any length) of Meshcat's default perspective camera in which every point
     of p_W (3×n, [m]) lies inside a frame of width/height ratio `aspect` (or
     any wider one), with the field of view `margin` times the points'
-    extent, the points centred. It looks at the points' mean depth."""
+    extent, and the points midway between the other pair of sides. It
+    looks at the points' mean depth."""
     p_W = np.asarray(p_W, float).reshape(3, -1)
     forward = -np.asarray(direction_W, float) / np.linalg.norm(direction_W)
     right = np.cross(forward, [0.0, 0.0, 1.0])
