@@ -14,7 +14,7 @@ Typical use, around a diagram that has a MeshcatVisualizer on `meshcat`:
 
 The page opens at the first view (Meshcat's camera commands, kept in the
 static HTML). A caption, a button per named view and, when asked, slow-motion
-buttons sit in an overlay in the page's top left corner (Meshcat has no text
+buttons sit in an overlay in the page's bottom left corner (Meshcat has no text
 primitive, and the static HTML keeps none of Meshcat's controls). The page's
 address may name a view and a time to open at, paused:
 `episode.html#view=catch&t=1.49`.
