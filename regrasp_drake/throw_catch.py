@@ -14,7 +14,7 @@ from types import SimpleNamespace
 import numpy as np
 import torch
 from pydrake.common.eigen_geometry import Quaternion
-from pydrake.geometry import Box, Rgba, Sphere
+from pydrake.geometry import Cylinder, Rgba, Sphere
 from pydrake.math import RigidTransform, RotationMatrix
 
 from regrasp_drake.errors import InputError
@@ -374,10 +374,12 @@ REPLAY_DIRECTION_W = (0.84, 0.48, 0.26)
 CATCH_VIEW_HALF_SIDE_M = 0.15
 # The slow-motion button plays from this long before the planned catch, [s].
 SLOW_MOTION_LEAD_S = 0.3
-# The palm's visual box (sdf/hand.sdf): its centre in the palm frame, its
-# size, [m].
-PALM_BOX_P_PB = (0.045, 0.0, 0.0)
-PALM_BOX_SIZE_M = (0.09, 0.115, 0.02)
+# The palm's centre in the palm frame, [m] (both hands' palm boxes span
+# 0-0.09 m along its x, sdf/hand*.sdf), where the wait pose's marker, a disc
+# in the palm's mid-plane of this radius and thickness, [m], is drawn: wider
+# than the palm, so that its rim shows around the palm waiting there.
+PALM_CENTRE_P_PC = (0.045, 0.0, 0.0)
+WAIT_MARKER_SIZE_M = (0.075, 0.002)
 
 
 def episode_caption(result: EpisodeResult) -> str:
@@ -396,31 +398,31 @@ def save_replay(meshcat, path, result: EpisodeResult, plan: CatchPlan,
                 ik: ArmIk, caption: str | None = None) -> str:
     """Writes the replay of a catching throw recorded on `meshcat`
     (`run_episode`) to path (replay.save_html): the object's logged path,
-    the planned catch point (a sphere) and the palm's pose while it waited
-    (a translucent box on the palm, from the logged arm state at the end of
-    WAIT), opening on the whole throw ("flight" view) with a second view on
-    the hand at the catch ("catch"), a slow-motion button from
-    SLOW_MOTION_LEAD_S before the planned catch, and `caption` shown over
-    the scene. Returns path."""
+    the planned catch point (a magenta sphere) and the palm's pose while it
+    waited (a translucent green disc around the palm, from the logged arm state
+    at the end of WAIT), opening on the whole throw ("flight" view) with a
+    second view on the hand at the catch ("catch"), a slow-motion button
+    from SLOW_MOTION_LEAD_S before the planned catch, and `caption` shown
+    over the scene. Returns path."""
     p_WO = result.logs.object_state[4:7]
     draw_path(meshcat, "/replay/object_path", p_WO)
-    p_WC = plan.catch_point.p_WO
+    p_WO_catch = plan.catch_point.p_WO
     meshcat.SetObject("/replay/catch_point", Sphere(0.015),
                       Rgba(0.9, 0.0, 0.6, 1.0))
-    meshcat.SetTransform("/replay/catch_point", RigidTransform(p_WC))
+    meshcat.SetTransform("/replay/catch_point", RigidTransform(p_WO_catch))
     waited = np.flatnonzero(result.logs.phase == int(Phase.WAIT))
-    framed = [p_WO, np.zeros((3, 1))]  # the path and the robot's base
+    framed = [p_WO]
     if waited.size:
         X_WP = ik.palm_pose(result.logs.arm_state[:6, waited[-1]])
-        meshcat.SetObject("/replay/wait_pose", Box(*PALM_BOX_SIZE_M),
-                          Rgba(0.1, 0.8, 0.3, 0.4))
+        meshcat.SetObject("/replay/wait_pose", Cylinder(*WAIT_MARKER_SIZE_M),
+                          Rgba(0.1, 0.8, 0.3, 0.5))
         meshcat.SetTransform("/replay/wait_pose",
-                             X_WP @ RigidTransform(PALM_BOX_P_PB))
+                             X_WP @ RigidTransform(PALM_CENTRE_P_PC))
         framed.append(X_WP.translation()[:, None])
     corners = np.array(np.meshgrid(*[[-1, 1]] * 3)).reshape(3, -1)
     views = [
         framing_view("flight", np.hstack(framed), REPLAY_DIRECTION_W),
-        framing_view("catch", p_WC[:, None]
+        framing_view("catch", p_WO_catch[:, None]
                      + CATCH_VIEW_HALF_SIDE_M * corners, REPLAY_DIRECTION_W)]
     return save_html(meshcat, path, views=views, caption=caption,
                      slow_motion_from_s=plan.catch_point.t_s

@@ -1,3 +1,6 @@
+import base64
+import html
+import math
 import os
 import re
 import tempfile
@@ -14,17 +17,29 @@ from pydrake.multibody.tree import SpatialInertia, UnitInertia
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
+from regrasp_drake.learning.run_replay import unpack
+from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import replay
 from regrasp_drake.station.replay import (
     CHROMIUM,
+    MESHCAT_FOV_DEG,
     ReplayError,
+    View,
+    framing_view,
     make_meshcat,
     render_html_to_png,
     save_html,
+    write_html,
 )
+from regrasp_drake.station.scenario import load_scenario
+from regrasp_drake.throw_catch import catch_once, episode_caption, save_replay
+from regrasp_drake.world.objects import load_catalogue
 
 BOX_RGBA = [0.9, 0.1, 0.1, 1.0]  # The falling box is red,
 GROUND_RGBA = [0.1, 0.7, 0.1, 1.0]  # the ground green.
+# Meshcat's opening camera position in the static HTML (three.js's y-up
+# frame), which a replay's own camera replaces.
+DEFAULT_CAMERA = [0.0, 1.0, 3.0]
 HAVE_CHROMIUM = os.access(CHROMIUM, os.X_OK)
 if not HAVE_CHROMIUM:
     print(
@@ -68,6 +83,56 @@ def _record_falling_box(meshcat, duration_s=0.5):
     simulator.AdvanceTo(duration_s)
 
 
+def _commands(page: str) -> list:
+    """The Meshcat commands of a static HTML page, decoded; those that
+    run_replay.unpack cannot decode (meshes' typed arrays) left out."""
+    commands = []
+    for data in re.findall(
+            r'fetch\("data:application/octet-binary;base64,([^"]*)"\)', page):
+        try:
+            commands.append(unpack(base64.b64decode(data)))
+        except ValueError:
+            pass
+    return commands
+
+
+def _camera_position(page: str):
+    """The camera position the page's scene sets, three.js frame, [m]."""
+    found = [c["value"] for c in _commands(page)
+             if c.get("type") == "set_property"
+             and c.get("path") == "/Cameras/default/rotated/<object>"
+             and c.get("property") == "position"]
+    return found[-1] if found else DEFAULT_CAMERA
+
+
+class FramingViewTest(unittest.TestCase):
+    def test_points_fill_the_frame(self):
+        rng = np.random.default_rng(46)
+        p_W = rng.normal(size=(3, 200)) * [[0.2], [0.1], [0.5]] + [[1], [0], [1]]
+        for direction_W in [(1, 0, 0), (0.84, 0.48, 0.26), (-1, 2, -0.5)]:
+            view = framing_view("v", p_W, direction_W, aspect=4 / 3, margin=1.1)
+            p_WC, p_WT = np.array(view.p_WC), np.array(view.p_WT)
+            forward = (p_WT - p_WC) / np.linalg.norm(p_WT - p_WC)
+            np.testing.assert_allclose(
+                -forward, np.array(direction_W) / np.linalg.norm(direction_W))
+            right = np.cross(forward, [0, 0, 1])
+            right /= np.linalg.norm(right)
+            up = np.cross(right, forward)
+            rel = p_W.T - p_WC
+            depth = rel @ forward
+            self.assertTrue(np.all(depth > 0))
+            # Tangents of the points' angles off the axis, over the frame's.
+            tan_v = math.tan(math.radians(MESHCAT_FOV_DEG) / 2)
+            v = (rel @ up) / depth / tan_v
+            h = (rel @ right) / depth / (tan_v * 4 / 3)
+            # Inside, and one pair of opposite sides touched at 1/margin.
+            self.assertLessEqual(max(np.abs(v).max(), np.abs(h).max()),
+                                 1 / 1.1 + 1e-9)
+            touched = [a for a in (v, h) if np.isclose(a.max(), 1 / 1.1)]
+            self.assertEqual(len(touched), 1)
+            self.assertAlmostEqual(touched[0].min(), -1 / 1.1)
+
+
 class ReplayTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
@@ -107,6 +172,27 @@ class ReplayTest(unittest.TestCase):
         self.assertEqual(external, [])
         self.assertIn("<script", html)
 
+    def test_page_opens_at_the_first_view_with_the_caption(self):
+        view = View("side", (2.0, -1.0, 0.5), (0.0, 0.0, 0.25))
+        path = write_html(
+            self.meshcat, os.path.join(self.dir.name, "views.html"),
+            views=[view, View("top", (0.0, 0.0, 3.0), (0.1, 0.0, 0.0))],
+            caption="box <dropped> & caught", slow_motion_from_s=0.25)
+        with open(path, encoding="utf-8") as f:
+            page = f.read()
+        # Drake's (x, y, z) is three.js's (x, z, -y).
+        self.assertEqual(_camera_position(page), [2.0, 0.5, 1.0])
+        targets = [c["value"] for c in _commands(page)
+                   if c.get("type") == "set_target"]
+        self.assertEqual(targets, [[0.0, 0.25, -0.0]])
+        self.assertIn(html.escape("box <dropped> & caught"), page)
+        self.assertNotIn("box <dropped>", page)
+        for label in ("side view", "top view", "slow ×0.25", "real time"):
+            self.assertIn(f">{label}</button>", page)
+        # The overlay comes after the scene's script, inside the body.
+        self.assertLess(page.index("embedded-json"), page.index("regrasp-overlay"))
+        self.assertTrue(page.rstrip().endswith("</html>"))
+
     @unittest.skipUnless(
         HAVE_CHROMIUM, f"{CHROMIUM} is absent (apt-get install -y chromium)"
     )
@@ -140,6 +226,78 @@ class ReplayTest(unittest.TestCase):
             )
         )[..., :3]
         self.assertEqual(len(np.unique(rgb.reshape(-1, 3), axis=0)), 1)
+
+
+@unittest.skipUnless(
+    HAVE_CHROMIUM, f"{CHROMIUM} is absent (apt-get install -y chromium)"
+)
+class CatchReplayTest(unittest.TestCase):
+    """The replay `regrasp-drake catch --html` and the main command write
+    (throw_catch.save_replay), of table1-row2 caught in the Fast scenario,
+    rendered at the grasp's time: with the robot, and written again with the
+    arm and hand hidden (the same page otherwise: scene, camera, overlay).
+    The pixels that differ are the robot's."""
+
+    PATHS = ("/drake/visualizer/puma560", "/drake/visualizer/hand")
+
+    @classmethod
+    def setUpClass(cls):
+        cls.dir = tempfile.TemporaryDirectory()
+        scenario = load_scenario(name="Fast")
+        meshcat = make_meshcat()
+        cls.result, plan = catch_once(
+            scenario, load_catalogue()["table1-row2"], h_catch=0.32,
+            h_down=-0.07, meshcat=meshcat)
+        def save(name):
+            return save_replay(
+                meshcat, os.path.join(cls.dir.name, name), cls.result, plan,
+                ArmIk(scenario.directives),
+                caption=episode_caption(cls.result))
+        cls.html = save("catch.html")
+        for path in cls.PATHS:
+            meshcat.SetProperty(path, "visible", False)
+        cls.hidden_html = save("hidden.html")
+        cls.at = f"t={cls.result.catch_time_s}"
+        cls.rgb = cls._render(cls.html, cls.at)
+        cls.hidden_rgb = cls._render(cls.hidden_html, cls.at)
+
+    @classmethod
+    def _render(cls, html_path, fragment):
+        png = os.path.join(cls.dir.name, f"{len(os.listdir(cls.dir.name))}.png")
+        return matplotlib.image.imread(
+            render_html_to_png(html_path, png, fragment=fragment))[..., :3]
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.dir.cleanup()
+
+    def test_caught_and_captioned(self):
+        self.assertEqual(self.result.outcome, "caught", self.result.message)
+        with open(self.html, encoding="utf-8") as f:
+            page = f.read()
+        self.assertIn("table1-row2: caught at", page)
+
+    def test_camera_is_not_the_default(self):
+        with open(self.html, encoding="utf-8") as f:
+            position = _camera_position(f.read())
+        self.assertGreater(
+            np.linalg.norm(np.subtract(position, DEFAULT_CAMERA)), 0.5)
+
+    def test_robot_spans_half_the_frame_height(self):
+        robot = np.any(np.abs(self.rgb - self.hidden_rgb) > 0.1, axis=2)
+        height, width = robot.shape
+        self.assertLess(robot.mean(), 0.6, "more than the robot changed")
+        rows = np.flatnonzero(robot.any(axis=1))
+        self.assertGreater(rows.size, 0, "the robot is not drawn")
+        share = (rows[-1] - rows[0] + 1) / height
+        print(f"CatchReplayTest: the robot's bounding box spans {share:.0%} "
+              f"of the frame's height, its pixels {robot.mean():.0%} of it")
+        self.assertGreaterEqual(share, 0.5)
+
+    def test_catch_view_moves_the_camera(self):
+        catch = self._render(self.html, f"view=catch&{self.at}")
+        changed = np.any(np.abs(catch - self.rgb) > 0.1, axis=2).mean()
+        self.assertGreater(changed, 0.2)
 
 
 def _is_running(pid, grace_s=2.0):

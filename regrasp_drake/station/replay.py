@@ -14,7 +14,7 @@ Typical use, around a diagram that has a MeshcatVisualizer on `meshcat`:
 
 The page opens at the first view (Meshcat's camera commands, kept in the
 static HTML). A caption, a button per named view and, when asked, slow-motion
-buttons sit in an overlay in the page's top left corner (Meshcat has no text
+buttons sit in an overlay in the page's bottom left corner (Meshcat has no text
 primitive, and the static HTML keeps none of Meshcat's controls). The page's
 address may name a view and a time to open at, paused:
 `episode.html#view=catch&t=1.49`.
@@ -82,7 +82,8 @@ def framing_view(
     any length) of Meshcat's default perspective camera in which every point
     of p_W (3×n, [m]) lies inside a frame of width/height ratio `aspect` (or
     any wider one), with the field of view `margin` times the points'
-    extent, the points centred. It looks at the points' mean depth."""
+    extent, and the points midway between the other pair of sides. It
+    looks at the points' mean depth."""
     p_W = np.asarray(p_W, float).reshape(3, -1)
     forward = -np.asarray(direction_W, float) / np.linalg.norm(direction_W)
     right = np.cross(forward, [0.0, 0.0, 1.0])
