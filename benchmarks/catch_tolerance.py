@@ -26,19 +26,13 @@ in <out>/, per object and scenario.
 # (regrasp_drake/numerics.py), so that results match across x86-64 machines.
 import regrasp_drake  # noqa: F401, I001 (first, see above)
 import argparse
-import contextlib
 import hashlib
-import importlib.util
 import json
 import sys
 import time
 from pathlib import Path
 
-# --scenario and --scenario-name, shared by the benchmarks.
-_spec = importlib.util.spec_from_file_location(
-    "scenario_args", Path(__file__).with_name("scenario_args.py"))
-scenario_args = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(scenario_args)
+from regrasp_drake import scenario_args
 
 GRID_MM = range(-20, 21, 10)
 
@@ -82,26 +76,24 @@ def main(argv=None) -> int:
     parser.add_argument("object")
     parser.add_argument("h_catch", type=float)
     parser.add_argument("h_down", type=float)
-    scenario_args.add(parser)
+    scenario_args.add(parser, text=False, target=False)
     parser.add_argument("--text", default=None,
                         help="YAML fields over the scenario's, for the "
                              "catches only")
     parser.add_argument("--offsets", default="all")
     parser.add_argument("--tag", default="")
     parser.add_argument("--out", type=Path, default=Path("out/catch_tolerance"))
-    args = parser.parse_args(argv)
-    with contextlib.ExitStack() as stack:
-        return _run(args, stack)
+    return _run(parser.parse_args(argv))
 
 
-def _run(args, stack) -> int:
+def _run(args) -> int:
     from regrasp_drake.errors import InputError
     from regrasp_drake.station.scenario import load_scenario
     from regrasp_drake.world.objects import resolve_object
     try:
-        scenario_args.resolved(args, stack)
-        base = load_scenario(args.scenario)
-        scenario = load_scenario(args.scenario, text=args.text)
+        base, _ = scenario_args.load(args)
+        scenario = load_scenario(args.scenario, name=args.scenario_name,
+                                 text=args.text)
         obj = resolve_object(name=args.object)
         offsets = parse_offsets(args.offsets)
     except InputError as e:

@@ -28,10 +28,9 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).parent))
-from tree_memory import run_sampled  # noqa: E402
+from tree_memory import run_sampled  # beside this script
 
-_REPO = Path(__file__).resolve().parents[1]
+from regrasp_drake.paths import REPO_DIR as _REPO
 
 
 def _training_objects() -> list[str]:

@@ -37,32 +37,18 @@ catch-point shift between the coarsest and finest steps.
 # (regrasp_drake/numerics.py), so that results match across x86-64 machines.
 import regrasp_drake  # noqa: F401, I001 (first, see above)
 import argparse
-import contextlib
-import importlib.util
+import dataclasses as dc
 import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
-# --scenario and --scenario-name, shared by the benchmarks.
-_spec = importlib.util.spec_from_file_location(
-    "scenario_args", Path(__file__).with_name("scenario_args.py"))
-scenario_args = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(scenario_args)
+from regrasp_drake import scenario_args
+from regrasp_drake.convergence import agreement
 
 _OBJECTS = [f"table1-row{k}" for k in range(1, 6)]
 _STEPS_MS = [1.0, 0.5]
-
-
-def agreement(a, b) -> dict:
-    """Cells with the same outcome in boolean maps a and b, and the number
-    two independent maps with their catch rates would share by chance."""
-    a, b = np.asarray(a, bool), np.asarray(b, bool)
-    p, q = a.mean(), b.mean()
-    return {"same": int((a == b).sum()),
-            "chance": round(float(a.size * (p * q + (1 - p) * (1 - q))), 1),
-            "cells": int(a.size)}
 
 
 def release_state(scenario, obj, logs) -> dict:
@@ -81,49 +67,49 @@ def release_state(scenario, obj, logs) -> dict:
             "w_O": [round(float(c), 4) for c in R_WO.T @ x[7:10]]}
 
 
-def _scenario(step_ms, scenario_path=None, throw_step_ms=None):
-    """The scenario with its catch at step_ms (and its throw at
-    throw_step_ms, if given)."""
+def _scenario(step_ms, base=None, throw_step_ms=None):
+    """The scenario `base` (default: the shipped one) with its catch at
+    step_ms (and its throw at throw_step_ms, if given)."""
     from regrasp_drake.station.scenario import (
         load_scenario,
         with_catch_time_step,
         with_time_step,
     )
-    scenario = load_scenario(scenario_path)
+    scenario = base or load_scenario()
     if throw_step_ms:
         scenario = with_time_step(scenario, throw_step_ms / 1e3)
     return with_catch_time_step(scenario, step_ms / 1e3)
 
 
-def claim_out_dir(out: Path, scenario_path=None) -> None:
+def claim_out_dir(out: Path, base=None, label=None) -> None:
     """Records in <out>/scenario.json the scenario (all but the catch's time
     step) the
     maps and flights in `out` come from, or refuses, naming --out and
     --scenario, a scenario other than the one recorded: the resumable files
-    there are keyed by object, step and cell only, and would mix runs."""
+    there are keyed by object, step and cell only, and would mix runs.
+    base: the Scenario (default: the shipped one); label: how it was given."""
     from regrasp_drake.errors import InputError
     from regrasp_drake.station.scenario import (
         load_scenario,
         scenario_yaml,
     )
     # The scenario's YAML at one fixed catch step (a string: it holds tags).
-    scenario = load_scenario(scenario_path)
-    scenario.catch_time_step_s = None
-    fields = scenario_yaml(scenario)
+    fields = scenario_yaml(dc.replace(base or load_scenario(),
+                                      catch_time_step_s=None))
     record = out / "scenario.json"
     if record.is_file():
         if json.loads(record.read_text()) != fields:
             raise InputError(
                 f"--out {out}: holds results of another scenario than "
-                f"--scenario {scenario_path or '(the shipped one)'} (see "
+                f"--scenario {label or '(the shipped one)'} (see "
                 f"{record}); expected a fresh --out")
         return
     out.mkdir(parents=True, exist_ok=True)
     record.write_text(json.dumps(fields, indent=1) + "\n")
 
 
-def flight(name, step_ms, scenario_path=None, throw_step_ms=None):
-    """The watching throw at one catch step (of the scenario at `scenario_path`,
+def flight(name, step_ms, base=None, throw_step_ms=None):
+    """The watching throw at one catch step (of the Scenario `base`,
     None: the shipped one): the release state and the planned catch
     (catch_point None when no moment is reachable); also returns the plan,
     for the map."""
@@ -131,7 +117,7 @@ def flight(name, step_ms, scenario_path=None, throw_step_ms=None):
     from regrasp_drake.planning.ik import ArmIk
     from regrasp_drake.throw_catch import plan_catch, watch
     from regrasp_drake.world.objects import resolve_object
-    scenario = _scenario(step_ms, scenario_path, throw_step_ms)
+    scenario = _scenario(step_ms, base, throw_step_ms)
     obj, ik = resolve_object(name=name), ArmIk()
     watched = watch(scenario, obj, ik)
     row = {"object": name, "step_ms": step_ms,
@@ -154,11 +140,11 @@ def _flight_row(task):
 
 
 def map_at_step(name, step_ms, out_dir: Path, workers: int,
-                throw_step_ms=None, scenario_path=None) -> dict:
+                throw_step_ms=None, base=None) -> dict:
     """The flight and the 150-cell success map of one object at one catch
     step (the throw at `throw_step_ms`, if given)."""
     from regrasp_drake.grid import run_map
-    row, setup = flight(name, step_ms, scenario_path, throw_step_ms)
+    row, setup = flight(name, step_ms, base, throw_step_ms)
     if setup is None:
         raise SystemExit(f"map_convergence: error: {name} at "
                          f"{step_ms:g} ms: no reachable catch point, no map")
@@ -250,26 +236,23 @@ def main(argv=None) -> int:
     parser.add_argument("--throw-step-ms", type=float,
                         help="the throw's plant step (default: the "
                              "scenario's); the catch at each of --steps-ms")
-    scenario_args.add(parser)  # only its time_step_s is varied
+    scenario_args.add(parser, target=False)  # only its time steps vary
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path, default=Path("out/map_convergence"),
                         help="a directory of rows; <out>.json and <out>.png "
                              "beside it")
     args = parser.parse_args(argv)
-    with contextlib.ExitStack() as stack:
-        return _run(args, stack)
+    return _run(args)
 
 
-def _run(args, stack) -> int:
+def _run(args) -> int:
     from regrasp_drake.errors import InputError
-    from regrasp_drake.station.scenario import load_scenario
     from regrasp_drake.world.objects import resolve_object
     try:
-        label = scenario_args.resolved(args, stack)
-        load_scenario(args.scenario)
+        base, label = scenario_args.load(args)
         for step in args.steps_ms:
             try:
-                _scenario(step, args.scenario, args.throw_step_ms)
+                _scenario(step, base, args.throw_step_ms)
             except InputError as e:
                 raise InputError(
                     f"--steps-ms {step:g}"
@@ -279,7 +262,7 @@ def _run(args, stack) -> int:
             resolve_object(name=name)
         if args.workers < 1:
             raise InputError(f"--workers {args.workers}: expected >= 1")
-        claim_out_dir(args.out, args.scenario)
+        claim_out_dir(args.out, base, label)
     except InputError as e:
         print(f"map_convergence: error: {e}", file=sys.stderr)
         return 2
@@ -292,7 +275,7 @@ def _run(args, stack) -> int:
         lines = args.out / "flights.jsonl"
         key = lambda row: (row["object"], row["step_ms"])  # noqa: E731
         done = read_rows(lines, key=key)
-        tasks = [(name, step, args.scenario, args.throw_step_ms)
+        tasks = [(name, step, base, args.throw_step_ms)
                  for name in args.objects
                  for step in args.steps_ms if (name, step) not in done]
         append_rows(_flight_row, tasks, lines, done, key,
@@ -306,7 +289,7 @@ def _run(args, stack) -> int:
                 print(f"{name}, step {step:g} ms", file=sys.stderr)
                 results[name][step] = map_at_step(
                     name, step, args.out, args.workers, args.throw_step_ms,
-                    args.scenario)
+                    base)
     summary = summarize(results, args.steps_ms) | {
         "throw_step_ms": args.throw_step_ms,
         "scenario": label}

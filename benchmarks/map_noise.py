@@ -28,19 +28,14 @@ it finishes; a rerun resumes), the scenario files used there, <out>.json
 # (regrasp_drake/numerics.py), so that results match across x86-64 machines.
 import regrasp_drake  # noqa: F401, I001 (first, see above)
 import argparse
-import contextlib
-import importlib.util
 import json
 import sys
 from pathlib import Path
 
+import map_convergence as study  # beside this script
 import numpy as np
 
-_HERE = Path(__file__).parent
-_spec = importlib.util.spec_from_file_location(
-    "map_convergence", _HERE / "map_convergence.py")
-study = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(study)
+from regrasp_drake import scenario_args
 
 _OBJECTS = ["table1-row4", "table1-row2"]
 _STDS = [1e-4, 1e-3, 1e-2]
@@ -50,22 +45,20 @@ def _level_dir(out: Path, std: float, seed: int) -> Path:
     return out / (f"std{std:g}_seed{seed}" if std > 0 else "plain")
 
 
-def _write_scenario(directory: Path, std: float, seed: int,
-                    base: Path | None = None, label: str | None = None) -> Path:
-    """The scenario at `base` (None: the shipped one; `label` says how it
-    was given) with only the release's joint-velocity noise set; written
-    whole beside the maps it made."""
+def noisy(base, std: float, seed: int):
+    """The Scenario `base` with only the release's joint-velocity noise
+    set."""
     import dataclasses as dc
 
-    from regrasp_drake.station.scenario import (
-        ThrowNoise,
-        load_scenario,
-        scenario_yaml,
-    )
-    scenario = load_scenario(base)
-    scenario = dc.replace(scenario, throw=dc.replace(
-        scenario.throw, noise=ThrowNoise(
-            joint_velocity_std_rad_per_s=float(std), seed=int(seed))))
+    from regrasp_drake.station.scenario import ThrowNoise
+    return dc.replace(base, throw=dc.replace(base.throw, noise=ThrowNoise(
+        joint_velocity_std_rad_per_s=float(std), seed=int(seed))))
+
+
+def _write_scenario(directory: Path, scenario, label: str | None = None) -> Path:
+    """Records `scenario` (the scenario `label` names with release noise)
+    whole beside the maps it made."""
+    from regrasp_drake.station.scenario import scenario_yaml
     path = directory / "scenario.yaml"
     path.write_text("# benchmarks/map_noise.py: "
                     f"{label or 'the shipped scenario'} with release noise.\n"
@@ -113,30 +106,29 @@ def main(argv=None) -> int:
     parser.add_argument("--step-ms", type=float, default=None,
                         help="the catch's plant time step, "
                              "catch_time_step_s (default: the scenario's)")
-    study.scenario_args.add(parser)  # the scenario the noise is added to
+    # The scenario the noise is added to.
+    scenario_args.add(parser, target=False)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path, default=Path("out/map_noise"),
                         help="a directory of rows; <out>.json and <out>.png "
                              "beside it")
-    args = parser.parse_args(argv)
-    with contextlib.ExitStack() as stack:
-        return _run(args, stack)
+    return _run(parser.parse_args(argv))
 
 
-def _run(args, stack) -> int:
+def _run(args) -> int:
     import dataclasses as dc
 
     from regrasp_drake.errors import InputError
-    from regrasp_drake.station.scenario import ThrowNoise, load_scenario, validate
+    from regrasp_drake.station.scenario import ThrowNoise, validate
     from regrasp_drake.world.objects import resolve_object
     try:
-        label = study.scenario_args.resolved(args, stack)
+        given, label = scenario_args.load(args)
         if args.step_ms is None:  # the scenario's catch step
-            scenario = load_scenario(args.scenario)
+            scenario = given
             args.step_ms = round((scenario.catch_time_step_s
                                   or scenario.plant_config.time_step) * 1e3, 9)
         try:
-            base = study._scenario(args.step_ms, args.scenario)
+            base = study._scenario(args.step_ms, given)
         except InputError as e:
             raise InputError(f"--step-ms {args.step_ms:g}: {e}") from None
         for std in args.stds:
@@ -166,14 +158,14 @@ def _run(args, stack) -> int:
     for std, seed in levels:
         directory = _level_dir(args.out, std, seed)
         directory.mkdir(parents=True, exist_ok=True)
-        scenario = (args.scenario if std == 0 else
-                    _write_scenario(directory, std, seed, args.scenario,
-                                    label))
+        scenario = given if std == 0 else noisy(given, std, seed)
+        if std:
+            _write_scenario(directory, scenario, label)
         for name in args.objects:
             print(f"{name}, noise {std:g} rad/s, seed {seed}", file=sys.stderr)
             maps[name][(std, seed)] = study.map_at_step(
                 name, args.step_ms, directory, args.workers,
-                scenario_path=scenario)
+                base=scenario)
     summary = {"step_ms": args.step_ms, "stds_rad_per_s": args.stds,
                "seeds": args.seeds, "scenario": label,
                "objects": summarize(maps, args.stds)}

@@ -51,9 +51,7 @@ every outcome's count) and <out>.png (the curves, the intervals as bars).
 # (regrasp_drake/numerics.py), so that results match across x86-64 machines.
 import regrasp_drake  # noqa: F401, I001 (first, see above)
 import argparse
-import contextlib
 import dataclasses as dc
-import importlib.util
 import json
 import math
 import sys
@@ -61,17 +59,14 @@ import time
 from collections import Counter
 from pathlib import Path
 
+from regrasp_drake import scenario_args
+from regrasp_drake.paths import MODELS_DIR
+
 _MODES = ("watch", "first-throw", "at-release", "watch-uncorrected",
           "first-throw-uncorrected")
 RELEASE_STD_PER_LEVEL_S = 0.002
 JOINT_DV_STD_PER_LEVEL = 0.03  # rad/s
-RESULTS = Path(__file__).parents[1] / "models" / "results"
-
-# --scenario and --scenario-name, shared by the benchmarks.
-_spec = importlib.util.spec_from_file_location(
-    "scenario_args", Path(__file__).with_name("scenario_args.py"))
-scenario_args = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(scenario_args)
+RESULTS = MODELS_DIR / "results"
 
 
 def wilson_interval(caught: int, trials: int, z: float = 1.96):
@@ -85,19 +80,18 @@ def wilson_interval(caught: int, trials: int, z: float = 1.96):
     return max(0.0, centre - half), min(1.0, centre + half)
 
 
-def _scenario(level, trial, scenario_path=None):
-    from regrasp_drake.station.scenario import ThrowNoise, load_scenario
-    scenario = load_scenario(scenario_path)
+def _scenario(level, trial, scenario):
+    from regrasp_drake.station.scenario import ThrowNoise
     noise = ThrowNoise(release_time_std_s=level * RELEASE_STD_PER_LEVEL_S,
                        joint_velocity_std_rad_per_s=level
                        * JOINT_DV_STD_PER_LEVEL, seed=trial)
     return dc.replace(scenario, throw=dc.replace(scenario.throw, noise=noise))
 
 
-def _base_digest(scenario_path=None) -> str:
+def _base_digest(scenario) -> str:
     """The digest of the scenario the trials perturb (without the noise)."""
-    from regrasp_drake.station.scenario import load_scenario, scenario_digest
-    return scenario_digest(load_scenario(scenario_path))
+    from regrasp_drake.station.scenario import scenario_digest
+    return scenario_digest(scenario)
 
 
 def _foreign_rows(done: dict, cells: dict, digest: str) -> str | None:
@@ -121,7 +115,7 @@ def _key(row) -> tuple:
 
 
 def _trial(task):
-    mode, name, level, trial, library, scenario_path, flight_model = task
+    mode, name, level, trial, library, base, flight_model = task
     import torch
 
     from regrasp_drake.errors import InputError
@@ -138,13 +132,13 @@ def _trial(task):
     )
     from regrasp_drake.world.objects import resolve_object
     torch.set_num_threads(1)
-    scenario = _scenario(level, trial, scenario_path)
+    scenario = _scenario(level, trial, base)
     obj = resolve_object(name=name)
     ik = ArmIk()
     entry = lookup(library, name)
     row = {"mode": mode, "object": name, "level": level, "trial": trial,
            "h_catch": entry.h_catch, "h_down": entry.h_down,
-           "scenario": _base_digest(scenario_path)}
+           "scenario": _base_digest(base)}
     parameters = (entry.h_catch, entry.h_down)
 
     def at_release(state, t):
@@ -195,7 +189,7 @@ def main(argv=None) -> int:
                         default=[0, 0.25, 0.5, 1, 2, 4])
     parser.add_argument("--trials", type=int, default=12)
     parser.add_argument("--workers", type=int, default=2)
-    scenario_args.add(parser)
+    scenario_args.add(parser, target=False)
     parser.add_argument("--library", type=Path,
                         default=RESULTS / "library_table1.yaml")
     parser.add_argument("--first-throw-library", type=Path,
@@ -211,12 +205,10 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path,
                         default=Path("out/noise_curve/noise_curve"),
                         help="<out>.jsonl, <out>.json and <out>.png")
-    args = parser.parse_args(argv)
-    with contextlib.ExitStack() as stack:
-        return _run(args, stack)
+    return _run(parser.parse_args(argv))
 
 
-def _run(args, stack) -> int:
+def _run(args) -> int:
     for flag, value, ok, expected in (
             ("--levels", min(args.levels), min(args.levels) >= 0,
              "noise levels ≥ 0"),
@@ -228,11 +220,9 @@ def _run(args, stack) -> int:
             return 2
     from regrasp_drake.errors import InputError
     from regrasp_drake.learning.library import load_library
-    from regrasp_drake.station.scenario import load_scenario
     from regrasp_drake.world.objects import load_catalogue
     try:
-        label = scenario_args.resolved(args, stack)
-        load_scenario(args.scenario)
+        scenario, label = scenario_args.load(args)
     except InputError as e:
         print(f"noise_curve: error: {e}", file=sys.stderr)
         return 2
@@ -276,7 +266,6 @@ def _run(args, stack) -> int:
     lines = args.out.with_suffix(".jsonl")
     lines.parent.mkdir(parents=True, exist_ok=True)
     done = read_rows(lines, key=_key)
-    scenario = args.scenario and str(args.scenario)
     cells = {}
     for mode, path in libraries.items():
         entries = load_library(path)

@@ -38,14 +38,14 @@ resumes); the summary goes to OUT/summary.json.
 # (regrasp_drake/numerics.py), so that results match across x86-64 machines.
 import regrasp_drake  # noqa: F401, I001 (first, see above)
 import argparse
-import contextlib
-import importlib.util
 import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
+from regrasp_drake import scenario_args
+from regrasp_drake.convergence import release_differences
 from regrasp_drake.errors import InputError, check_output_path
 from regrasp_drake.grid import append_rows, read_rows
 from regrasp_drake.planning.ik import ArmIk
@@ -53,12 +53,6 @@ from regrasp_drake.station.episode import release_time
 from regrasp_drake.station.scenario import load_scenario, with_time_step
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world.objects import load_catalogue
-
-# --scenario and --scenario-name, shared by the benchmarks.
-_spec = importlib.util.spec_from_file_location(
-    "scenario_args", Path(__file__).with_name("scenario_args.py"))
-scenario_args = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(scenario_args)
 
 TARGETS = {"spin_rad_per_s": 0.05, "velocity_mm_per_s": 10.0,
            "catch_point_mm": 10.0, "catch_moment_ms": 4.0}
@@ -82,14 +76,17 @@ def throw_at(scenario, obj, ik) -> dict:
     return row
 
 
-def settings(scenario_path, text, fine_step, fine_text):
-    """The (coarse, fine) scenarios: the scenario with `text` over it, and
-    that with `fine_text` over it too, or at `fine_step` [s]."""
-    coarse = load_scenario(scenario_path, text=text)
+def settings(args, fine_step, fine_text):
+    """The (coarse, fine) scenarios: the scenario of `args`' options
+    (--scenario, --scenario-name, --scenario-text), and that with
+    `fine_text` over it too, or at `fine_step` [s]."""
+    coarse, _ = scenario_args.load(args)
     if fine_text is None:
         return coarse, with_time_step(coarse, fine_step)
+    text = args.scenario_text
     merged = fine_text if text is None else _merged_text(text, fine_text)
-    return coarse, load_scenario(scenario_path, text=merged)
+    return coarse, load_scenario(args.scenario, name=args.scenario_name,
+                                 text=merged)
 
 
 def _merged_text(text, fine_text) -> str:
@@ -109,9 +106,7 @@ def describe(scenario) -> dict:
 
 
 def _task(args) -> dict:
-    # The scenario travels as its path (Drake's config structs do not pickle).
-    name, scenario_path, text, fine, fine_text = args
-    scenario, fine_scenario = settings(scenario_path, text, fine, fine_text)
+    name, scenario, fine_scenario = args
     obj = load_catalogue()[name]
     ik = ArmIk()
     coarse_row = throw_at(scenario, obj, ik)
@@ -119,23 +114,8 @@ def _task(args) -> dict:
     return {"object": name, "set": obj.set, "geometry": obj.geometry,
             "steps_s": [scenario.time_step_s, fine_scenario.time_step_s],
             "settings": [describe(scenario), describe(fine_scenario)],
-            "coarse": coarse_row, "fine": fine_row, **differences(
+            "coarse": coarse_row, "fine": fine_row, **release_differences(
                 coarse_row, fine_row)}
-
-
-def differences(a: dict, b: dict) -> dict:
-    d = {"spin_rad_per_s": float(np.linalg.norm(
-             np.subtract(a["w_WO"], b["w_WO"]))),
-         "velocity_mm_per_s": 1e3 * float(np.linalg.norm(
-             np.subtract(a["v_WO"], b["v_WO"]))),
-         "position_mm": 1e3 * float(np.linalg.norm(
-             np.subtract(a["p_WO"], b["p_WO"]))),
-         "catch_point_mm": None, "catch_moment_ms": None}
-    if a["catch_p_WO"] is not None and b["catch_p_WO"] is not None:
-        d["catch_point_mm"] = 1e3 * float(np.linalg.norm(
-            np.subtract(a["catch_p_WO"], b["catch_p_WO"])))
-        d["catch_moment_ms"] = 1e3 * abs(a["catch_t_s"] - b["catch_t_s"])
-    return d
 
 
 def summarize(rows: list[dict]) -> dict:
@@ -159,9 +139,7 @@ def summarize(rows: list[dict]) -> dict:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    scenario_args.add(parser)
-    parser.add_argument("--scenario-text", default=None,
-                        help="YAML fields over the scenario's, both settings")
+    scenario_args.add(parser, target=False)  # the text: both settings
     parser.add_argument("--fine-step-s", type=float, default=None,
                         help="default: the scenario's step / 4")
     parser.add_argument("--fine-scenario-text", default=None,
@@ -171,21 +149,18 @@ def main(argv=None) -> int:
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--out", type=Path,
                         default=Path("out/release_convergence"))
-    args = parser.parse_args(argv)
-    with contextlib.ExitStack() as stack:
-        return _run(args, stack)
+    return _run(parser.parse_args(argv))
 
 
-def _run(args, stack) -> int:
+def _run(args) -> int:
     try:
-        scenario_args.resolved(args, stack)
         if args.fine_step_s is not None and args.fine_scenario_text:
             raise InputError("--fine-step-s and --fine-scenario-text: "
                              "give one of them, not both")
-        scenario = load_scenario(args.scenario, text=args.scenario_text)
+        scenario, _ = scenario_args.load(args)
         fine = args.fine_step_s or scenario.time_step_s / 4
-        scenario, fine_scenario = settings(
-            args.scenario, args.scenario_text, fine, args.fine_scenario_text)
+        scenario, fine_scenario = settings(args, fine,
+                                           args.fine_scenario_text)
         catalogue = load_catalogue()
         names = args.objects or list(catalogue)
         for name in names:
@@ -203,8 +178,7 @@ def _run(args, stack) -> int:
     except InputError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    todo = [(n, args.scenario, args.scenario_text, fine,
-             args.fine_scenario_text) for n in names if n not in done]
+    todo = [(n, scenario, fine_scenario) for n in names if n not in done]
     if todo:
         append_rows(_task, todo, rows_path, done, lambda r: r["object"],
                     workers=args.workers, label="objects", unit="object")

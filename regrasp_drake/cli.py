@@ -10,16 +10,15 @@ entries) is kept and resumed by the next run.
 """
 
 import argparse
-import contextlib
 import io
 import json
 import os
 import signal
 import sys
-import tempfile
 import time
 from pathlib import Path
 
+from regrasp_drake import scenario_args
 from regrasp_drake.errors import (
     InputError,
     check_output_path,
@@ -37,68 +36,6 @@ def _add_object_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--object-file", metavar="F", type=Path,
                    help="a YAML object file in the catalogue's format (its "
                         "first object unless --object names another)")
-
-
-def _add_scenario_arg(p: argparse.ArgumentParser, target: bool = True) -> None:
-    p.add_argument("--scenario", metavar="F", type=Path,
-                   help="a scenario YAML file; with --scenario-name, a file "
-                        "of named scenarios (default: "
-                        "regrasp_drake/scenarios.yaml)")
-    p.add_argument("--scenario-name", metavar="NAME",
-                   help="a scenario of the named scenarios' file (default: "
-                        "Default)")
-    p.add_argument("--scenario-text", metavar="YAML",
-                   help="fields that replace the scenario's, e.g. "
-                        "'{catch: {return_s: 0.4}}'")
-    if not target:
-        return
-    p.add_argument("--target", choices=("keep", "flip", "turn", "any"),
-                   help="the grasp the catch must end in, relative to how "
-                        "the object lies before the throw (keep, flip: end "
-                        "over end, turn: the wrist's half turn, any: held at "
-                        "all); picks the target's throw (default: the "
-                        "scenario's regrasp.target, 'any')")
-    p.add_argument("--offset-mm", type=float, metavar="MM",
-                   help="with --target: the palm centre's position along the "
-                        "object's axis from its centre of mass, mm (default 0)")
-
-
-@contextlib.contextmanager
-def _resolved_scenario(args):
-    """With --scenario-name or --scenario-text, the scenario they make is
-    loaded (refused before any work) and written to a temporary file that
-    --scenario then names for the command and its workers;
-    args.scenario_label says how it was given."""
-    name = getattr(args, "scenario_name", None)
-    text = getattr(args, "scenario_text", None)
-    kind = getattr(args, "target", None)
-    offset = getattr(args, "offset_mm", None)
-    if kind is None and getattr(args, "target_required", False):
-        raise InputError("--target: missing, expected keep, flip, turn or any")
-    if offset is not None and kind is None:
-        raise InputError(f"--offset-mm: got {offset:g} without --target, "
-                         "expected --target keep, flip, turn or any beside it")
-    if name is None and text is None and kind is None:
-        yield
-        return
-    from regrasp_drake.planning.grasp import Target
-    from regrasp_drake.station.scenario import (
-        load_scenario,
-        scenario_yaml,
-        with_target,
-    )
-    scenario = load_scenario(args.scenario, name=name, text=text)
-    if kind is not None:
-        scenario = with_target(scenario, Target(kind, offset or 0.0))
-    given = [("--scenario", args.scenario and args.scenario.resolve()),
-             ("--scenario-name", name), ("--scenario-text", text),
-             ("--target", kind), ("--offset-mm", offset)]
-    args.scenario_label = " ".join(f"{flag} {value}" for flag, value in given
-                                   if value is not None)
-    with tempfile.TemporaryDirectory(prefix="regrasp-scenario-") as d:
-        args.scenario = Path(d) / "scenario.yaml"
-        args.scenario.write_text(scenario_yaml(scenario))
-        yield
 
 
 class _InOutDir:
@@ -185,13 +122,11 @@ def _grid_entry(args) -> str:
 
 
 def _cmd_grid(args) -> int:
-    from regrasp_drake.station.scenario import load_scenario
-    load_scenario(args.scenario)  # refuse a bad scenario before forking
     _check_workers(args.workers)
     entry = _grid_entry(args)
     from regrasp_drake.grid import format_map, success_map  # torch: after
     rows = success_map(object_name=args.object, object_file=args.object_file,
-                       scenario_path=args.scenario, out=args.out,
+                       scenario=args.scenario, out=args.out,
                        workers=args.workers, catch_point=args.catch_point)
     print(f"{entry}: outcome of every cell (results in {args.out})")
     print(format_map(rows))
@@ -205,16 +140,14 @@ def _cmd_grid(args) -> int:
 def _scenario_and_object(args):
     """The scenario and object of a command, and their provenance labels."""
     from regrasp_drake.planning.grasp import check_reachable
-    from regrasp_drake.station.scenario import load_scenario, target_of
+    from regrasp_drake.station.scenario import target_of
     from regrasp_drake.world.objects import resolve_object
-    scenario = load_scenario(args.scenario)
+    scenario = args.scenario
     obj = resolve_object(name=args.object, file=args.object_file)
     check_reachable(target_of(scenario), obj)
     source = (str(args.object_file.resolve()) if args.object_file
               else "catalogue")
-    label = getattr(args, "scenario_label", None) or (
-        str(args.scenario.resolve()) if args.scenario else "defaults")
-    return scenario, obj, source, label
+    return scenario, obj, source, args.scenario_label
 
 
 def _write_json(path, data) -> None:
@@ -383,9 +316,7 @@ def _cmd_apply(args) -> int:
 
 
 def _cmd_dataset(args) -> int:
-    from regrasp_drake.station.scenario import load_scenario
     from regrasp_drake.world.objects import load_catalogue
-    load_scenario(args.scenario)  # refuse a bad scenario before any work
     if args.backend == "process":
         _check_workers(args.workers)
     catalogue = load_catalogue()
@@ -397,7 +328,7 @@ def _cmd_dataset(args) -> int:
                              "object (see `regrasp-drake objects`)")
     from regrasp_drake.learning.dataset import generate  # torch: after
     provenance = generate(names, args.out, workers=args.workers,
-                          backend=args.backend, scenario_path=args.scenario,
+                          backend=args.backend, scenario=args.scenario,
                           catch_points=args.catch_points)
     print(json.dumps({k: v for k, v in provenance.items() if k != "scenario"},
                      indent=1))
@@ -455,10 +386,9 @@ def _cmd_table1(args) -> int:
         write_outputs,
     )
     from regrasp_drake.planning.ik import ArmIk
-    from regrasp_drake.station.scenario import load_scenario
     from regrasp_drake.world.objects import resolve_object
     torch.set_num_threads(1)
-    scenario = load_scenario(args.scenario)
+    scenario = args.scenario
     model = _load_network(args, scenario)
     flight_predictor = _flight_predictor(args)
     for name in object_names(args.objects):  # all of them before any throw
@@ -484,10 +414,9 @@ def _cmd_train_flight(args) -> int:
     from regrasp_drake.learning.flight_predictor import train_from_dataset
     from regrasp_drake.paths import MODELS_DIR
     from regrasp_drake.planning.ik import ArmIk
-    from regrasp_drake.station.scenario import load_scenario
     from regrasp_drake.world.objects import load_catalogue
     torch.set_num_threads(1)
-    scenario = load_scenario(args.scenario)
+    scenario = args.scenario
     data = args.data or MODELS_DIR / "dataset"
     held_out = [o for o in load_catalogue().values()
                 if o.set in ("test", "holdout")]
@@ -500,11 +429,10 @@ def _cmd_train_flight(args) -> int:
 def _cmd_train_offset(args) -> int:
     from regrasp_drake.learning.offset_prior import OffsetPrior, collect
     from regrasp_drake.planning.grasp import Target
-    from regrasp_drake.station.scenario import load_scenario
     from regrasp_drake.world.objects import load_catalogue
     _check_workers(args.workers)
     targets = [Target.parse(text) for text in args.targets]
-    scenario = load_scenario(args.scenario)
+    scenario = args.scenario
     model = _load_network(args, scenario)
     objects = args.objects or [o.name for o in load_catalogue().values()
                                if o.set == "train"]
@@ -542,7 +470,7 @@ def make_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("catch", help="one throw and one catch attempt")
     _add_object_args(p)
-    _add_scenario_arg(p)
+    scenario_args.add(p)
     p.add_argument("--h-catch", type=float, required=True, metavar="X",
                    help="height above the palm at which the fingers start to "
                         "close, m (0 … 0.40)")
@@ -558,7 +486,7 @@ def make_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("grid", help="the outcome of all 150 cells of the "
                                     "parameter space for one object")
     _add_object_args(p)
-    _add_scenario_arg(p)
+    scenario_args.add(p)
     p.add_argument("--out", type=Path, metavar="F",
                    default=_InOutDir("grid-{entry}.jsonl"),
                    help="JSON lines, written as cells finish; an existing "
@@ -579,7 +507,7 @@ def make_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("throw", help="the observation throw and its offline "
                                      "stage: catch points and the hand's pose")
     _add_object_args(p)
-    _add_scenario_arg(p)
+    scenario_args.add(p)
     p.add_argument("--json", type=Path, metavar="F", help="write the result")
     p.add_argument("--plot", type=Path, metavar="F",
                    help="PNG of the flight, its axis tilt and catch points")
@@ -593,7 +521,7 @@ def make_parser() -> argparse.ArgumentParser:
                         "as learn")):
         p = sub.add_parser(command, help=help_text)
         _add_object_args(p)
-        _add_scenario_arg(p)
+        scenario_args.add(p)
         _add_library_arg(p)
         p.add_argument("--weights", type=Path, metavar="F",
                        help="the MLP's weights file (default: the scenario's "
@@ -616,7 +544,7 @@ def make_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("apply", help="the applying phase: one throw, caught "
                                      "with what `learn` stored")
     _add_object_args(p)
-    _add_scenario_arg(p)
+    scenario_args.add(p)
     _add_library_arg(p)
     p.add_argument("--html", type=Path, metavar="F",
                    help="the Meshcat replay of the throw, one HTML file")
@@ -625,7 +553,7 @@ def make_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("dataset", help="success maps and labels of the "
                                        "training objects (resumable)")
-    _add_scenario_arg(p)
+    scenario_args.add(p)
     p.add_argument("--objects", nargs="+", metavar="NAME",
                    help="catalogue objects (default: every training object)")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
@@ -663,7 +591,7 @@ def make_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("table1", help="the paper's Table 1: the learning "
                                       "phase on its five test objects "
                                       "(--search as for learn)")
-    _add_scenario_arg(p)
+    scenario_args.add(p)
     _add_library_arg(p)
     p.add_argument("--weights", type=Path, metavar="F",
                    help="the MLP's weights file (default: the scenario's "
@@ -691,7 +619,7 @@ def make_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("train-flight", help="fit the flight predictor (the "
                        "first-throw mode's) on the data set's flights")
-    _add_scenario_arg(p)
+    scenario_args.add(p)
     p.add_argument("--data", type=Path, metavar="DIR",
                    help="data set directory (default models/dataset)")
     p.add_argument("--out", type=Path, metavar="F",
@@ -705,7 +633,7 @@ def make_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("train-offset", help="fit the offset prior: how far "
                        "each target's catch slides along the axis, from one "
                        "catch per training object and target")
-    _add_scenario_arg(p, target=False)
+    scenario_args.add(p, target=False)
     p.add_argument("--targets", nargs="+", metavar="KIND:MM",
                    default=[f"{k}:{o}" for k in ("keep", "flip")
                             for o in (-30, 0, 30)],
@@ -1059,8 +987,10 @@ def main(argv=None) -> int:
         _check_outputs(args)
         if getattr(args, "out_dir", None) is not None:
             args.out_dir.mkdir(parents=True, exist_ok=True)
-        with _resolved_scenario(args):
-            return args.func(args)
+        if "scenario" in vars(args):  # loaded once: the command's from here
+            args.scenario, args.scenario_label = scenario_args.load(
+                args, target_required=getattr(args, "target_required", False))
+        return args.func(args)
     except InputError as e:
         # One line whatever the message holds, and never a huge one.
         message = " ".join(str(e).split())

@@ -109,15 +109,16 @@ def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
     return done
 
 
-def success_map(*, object_name=None, object_file=None, scenario_path=None,
+def success_map(*, object_name=None, object_file=None, scenario=None,
                 out: Path, workers: int = 2, progress=True,
                 catch_point: int = 1) -> dict:
     """`regrasp-drake grid`: the success map of one object at its
     `catch_point`-th catch point, resumable. What the rows are computed from
     (the object, the catch point, the scenario's digest and the plan) is
-    written beside them (`plan_path`) and must match when a run resumes."""
+    written beside them (`plan_path`) and must match when a run resumes.
+    scenario: a Scenario (default: the shipped one)."""
     torch.set_num_threads(1)
-    scenario = load_scenario(scenario_path)
+    scenario = scenario or load_scenario()
     obj = resolve_object(name=object_name, file=object_file)
     ik = ArmIk(scenario.directives)
     plan = plan_object(scenario, obj, ik, catch_point)

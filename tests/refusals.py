@@ -15,6 +15,10 @@ def load_script(path: str):
     for a process pool)."""
     name = Path(path).stem
     path = Path(__file__).parents[1] / path
+    # As when it runs (`python benchmarks/x.py`): the scripts beside it
+    # import as modules.
+    if str(path.parent) not in sys.path:
+        sys.path.append(str(path.parent))
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module

@@ -225,8 +225,8 @@ class GenerateTest(unittest.TestCase):
         # The finished set (provenance.json) and a set whose first run was
         # killed (scenario.yaml only) both refuse another scenario before
         # any simulation, naming the first field that differs.
-        hold = self.root / "hold_0.5.yaml"  # the grasp monitor's hold doubled
-        hold.write_text("monitor:\n  hold_s: 0.5\n")
+        # The grasp monitor's hold doubled.
+        hold = load_scenario(text="{monitor: {hold_s: 0.5}}")
         killed = self.root / "killed"
         killed.mkdir()
         (killed / "scenario.yaml").write_text(scenario_text())
@@ -234,7 +234,7 @@ class GenerateTest(unittest.TestCase):
             with self.subTest(out=out.name):
                 with self.assertRaises(InputError) as e:
                     generate(OBJECTS, out, workers=1, only=COARSE,
-                             scenario_path=hold, progress=False)
+                             scenario=hold, progress=False)
                 self.assertEqual(
                     str(e.exception).split(" (")[0],
                     f"--scenario: monitor.hold_s is 0.5 here but 0.25 in the "
@@ -372,10 +372,9 @@ class RayClusterTest(unittest.TestCase):
     def setUpClass(cls):
         cls.tmp = tempfile.TemporaryDirectory()
         cls.root = Path(cls.tmp.name)
-        cls.scenario = cls.root / "fast.yaml"
-        cls.scenario.write_text(scenario_yaml(load_scenario(name="Fast")))
+        cls.scenario = load_scenario(name="Fast")
         generate(OBJECTS, cls.root / "serial", workers=1, only=COARSE,
-                 scenario_path=cls.scenario, progress=False)
+                 scenario=cls.scenario, progress=False)
 
     @classmethod
     def tearDownClass(cls):
@@ -425,7 +424,7 @@ class RayClusterTest(unittest.TestCase):
         self._cluster()
         out = self.root / "cluster"
         provenance = generate(OBJECTS, out, workers=2, backend="ray",
-                              only=COARSE, scenario_path=self.scenario,
+                              only=COARSE, scenario=self.scenario,
                               progress=False)
         self._check_same_as_serial(out, provenance)
 
@@ -458,7 +457,7 @@ class RayClusterTest(unittest.TestCase):
         thread = threading.Thread(target=kill_when_busy, daemon=True)
         thread.start()
         provenance = generate(OBJECTS, out, workers=2, backend="ray",
-                              only=COARSE, scenario_path=self.scenario,
+                              only=COARSE, scenario=self.scenario,
                               progress=False)
         thread.join(timeout=5)
         self.assertTrue(killed.is_set(), "the worker node was not killed while busy")

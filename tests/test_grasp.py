@@ -192,11 +192,10 @@ class TargetInProvenanceTest(unittest.TestCase):
             for target, field in ((Target("flip", 30.0), "regrasp.offset_mm"),
                                   (Target("keep"), "regrasp.target")):
                 with self.subTest(target=target):
-                    other = Path(d) / f"{target.kind}.yaml"
-                    other.write_text(scenario_yaml(with_target(base, target)))
                     with self.assertRaises(InputError) as e:
                         generate(["table1-row2"], old, workers=1,
-                                 only=[(2, 3)], scenario_path=other,
+                                 only=[(2, 3)],
+                                 scenario=with_target(base, target),
                                  progress=False)
                     self.assertIn(f"--scenario: {field} is", str(e.exception))
             self.assertEqual(sorted(p.name for p in old.iterdir()),

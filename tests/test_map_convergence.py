@@ -127,21 +127,25 @@ class BadInputTest(RefusalAssertions, unittest.TestCase):
 
 
 class NamedScenarioTest(unittest.TestCase):
-    def test_named_scenario_written_for_the_run_only(self):
-        import contextlib
+    def test_the_options_load_the_scenario_once_as_data(self):
+        import pickle
 
-        from regrasp_drake.station.scenario import load_scenario
-        args = SimpleNamespace(scenario=None, scenario_name="Fast")
-        with contextlib.ExitStack() as stack:
-            label = study.scenario_args.resolved(args, stack)
-            self.assertEqual(label, "--scenario-name Fast")
-            self.assertEqual(load_scenario(args.scenario),
-                             load_scenario(name="Fast"))
-        self.assertFalse(args.scenario.exists())
+        from regrasp_drake import scenario_args
+        from regrasp_drake.station.scenario import load_scenario, scenario_yaml
+        args = SimpleNamespace(scenario=None, scenario_name="Fast",
+                               scenario_text="{monitor: {hold_s: 0.5}}")
+        scenario, label = scenario_args.load(args)
+        self.assertEqual(label, "--scenario-name Fast --scenario-text "
+                                "{monitor: {hold_s: 0.5}}")
+        fast = load_scenario(name="Fast", text="{monitor: {hold_s: 0.5}}")
+        self.assertEqual(scenario_yaml(scenario), scenario_yaml(fast))
+        # What a worker gets: the same scenario, as data.
+        self.assertEqual(scenario_yaml(pickle.loads(pickle.dumps(scenario))),
+                         scenario_yaml(fast))
         shipped = SimpleNamespace(scenario=None, scenario_name=None)
-        with contextlib.ExitStack() as stack:
-            self.assertIsNone(study.scenario_args.resolved(shipped, stack))
-        self.assertIsNone(shipped.scenario)
+        scenario, label = scenario_args.load(shipped)
+        self.assertEqual(label, "defaults")
+        self.assertEqual(scenario_yaml(scenario), scenario_yaml(load_scenario()))
 
 
 class OutDirTest(unittest.TestCase):
@@ -149,19 +153,19 @@ class OutDirTest(unittest.TestCase):
         import tempfile
 
         from regrasp_drake.errors import InputError
+        from regrasp_drake.station.scenario import load_scenario
         with tempfile.TemporaryDirectory() as tmp:
             out = Path(tmp) / "study"
             study.claim_out_dir(out)
             study.claim_out_dir(out)  # The same scenario again: resumes.
-            other = Path(tmp) / "sap.yaml"
-            other.write_text("contact:\n  discrete_contact_approximation: sap\n")
+            other = load_scenario(
+                text="{plant_config: {discrete_contact_approximation: sap}}")
             with self.assertRaisesRegex(InputError, r"--out .*study: holds "
                                         r"results of another scenario"):
                 study.claim_out_dir(out, other)
             # Only the catch's step may differ: it is what the study varies.
-            step = Path(tmp) / "step.yaml"
-            step.write_text("catch_time_step_s: 0.0005\n")
-            study.claim_out_dir(out, step)
+            study.claim_out_dir(out, load_scenario(
+                text="{catch_time_step_s: 0.0005}"))
 
 
 if __name__ == "__main__":

@@ -46,19 +46,18 @@ class ChangedTest(unittest.TestCase):
 
 class NoisyScenarioTest(unittest.TestCase):
     def test_the_named_scenario_with_only_the_noise_set(self):
-        import contextlib
         import dataclasses as dc
         import tempfile
         from pathlib import Path
         from types import SimpleNamespace
 
+        from regrasp_drake import scenario_args
         from regrasp_drake.station.scenario import load_scenario
         args = SimpleNamespace(scenario=None, scenario_name="Fast")
-        with contextlib.ExitStack() as stack, \
-                tempfile.TemporaryDirectory() as d:
-            label = sensitivity.study.scenario_args.resolved(args, stack)
-            path = sensitivity._write_scenario(Path(d), 0.01, 2,
-                                               args.scenario, label)
+        with tempfile.TemporaryDirectory() as d:
+            base, label = scenario_args.load(args)
+            path = sensitivity._write_scenario(
+                Path(d), sensitivity.noisy(base, 0.01, 2), label)
             self.assertIn("--scenario-name Fast with release noise",
                           path.read_text().splitlines()[0])
             noisy, fast = load_scenario(path), load_scenario(name="Fast")

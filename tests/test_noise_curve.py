@@ -116,7 +116,7 @@ class NoiseCurveTest(RefusalAssertions, unittest.TestCase):
             point = summary["curves"][mode][0]
             self.assertEqual((point["trials"], point["caught"]), (1, 1))
             self.assertEqual(point["catch_rate_95"][1], 1.0)
-        self.assertIsNone(summary["scenario"])  # the shipped one
+        self.assertEqual(summary["scenario"], "defaults")  # the shipped one
         self.assertGreater(self.out.with_suffix(".png").stat().st_size, 10_000)
 
 

@@ -1,11 +1,13 @@
 """regrasp_drake/numerics.py: NumPy's and OpenBLAS's kernels pinned before
 NumPy is imported, and left alone when the user chose or it is too late."""
 
+import ast
 import json
 import os
 import subprocess
 import sys
 import unittest
+from pathlib import Path
 from unittest import mock
 
 from regrasp_drake import numerics
@@ -48,6 +50,42 @@ class PinTest(unittest.TestCase):
             numerics.pin()  # NumPy is loaded in this process: no effect.
             self.assertNotIn("OPENBLAS_CORETYPE", os.environ)
             self.assertNotIn("NPY_DISABLE_CPU_FEATURES", os.environ)
+
+
+def _first_import(path: Path) -> str | None:
+    """The root module of the first module-level import in the script at
+    `path` that is neither of the standard library nor a script beside it
+    (those are checked themselves), or None."""
+    siblings = {p.stem for p in path.parent.glob("*.py")}
+    for node in ast.parse(path.read_text()).body:
+        if isinstance(node, ast.Import):
+            roots = [a.name.split(".")[0] for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.level == 0:
+            roots = [node.module.split(".")[0]]
+        else:
+            continue
+        for root in roots:
+            if root not in sys.stdlib_module_names and root not in siblings:
+                return root
+    return None
+
+
+class ScriptsTest(unittest.TestCase):
+    """The pin cannot be applied from outside a process that imports NumPy
+    before the package (NumPy reads the variables once, at import; only a
+    .pth file of the environment's site-packages would run earlier, and
+    setuptools installs none from pyproject.toml): so every script imports
+    the package, or a module of it, before anything else that is not of
+    the standard library."""
+
+    def test_every_script_imports_the_package_before_numpy(self):
+        root = Path(__file__).parents[1]
+        scripts = sorted(p for d in ("benchmarks", "studies", "examples")
+                         for p in (root / d).rglob("*.py"))
+        self.assertGreater(len(scripts), 15)
+        for path in scripts:
+            with self.subTest(script=str(path.relative_to(root))):
+                self.assertIn(_first_import(path), (None, "regrasp_drake"))
 
 
 if __name__ == "__main__":

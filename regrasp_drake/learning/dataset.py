@@ -149,11 +149,10 @@ def object_of(entry: str) -> str:
 
 def _object_task(args):
     """One entry's plan and map (in a worker process); returns its name."""
-    scenario_path, entry, out_dir, only = args
+    scenario, entry, out_dir, only = args
     name, _, point = entry.partition("@")
     point = int(point or 1)
     torch.set_num_threads(1)
-    scenario = load_scenario(scenario_path)
     obj = resolve_object(name=name)
     ik = ArmIk(scenario.directives)
     out_dir = Path(out_dir)
@@ -203,12 +202,14 @@ def _object_done(out_dir: Path, name: str, only) -> bool:
 
 
 def generate(names: list[str], out_dir: Path, *, workers: int = 1,
-             backend: str = "process", scenario_path=None,
+             backend: str = "process", scenario=None,
              progress: bool = True, only=None, catch_points: int = 1) -> dict:
     """Computes every entry's plan and map not yet in out_dir (the objects'
     first `catch_points` catch points), then writes samples.csv, maps.npz
     and provenance.json. Returns the provenance. `only`: a subset of the
-    cells (a coarse data set; the cells left out count as not catching)."""
+    cells (a coarse data set; the cells left out count as not catching).
+    scenario: a Scenario (default: the shipped one); the workers get it as
+    data (it pickles as its YAML)."""
     if backend not in ("process", "ray"):
         raise InputError(f"--backend: got {backend!r}, expected process or ray")
     if workers < 1:
@@ -217,12 +218,12 @@ def generate(names: list[str], out_dir: Path, *, workers: int = 1,
         raise InputError(f"--catch-points: got {catch_points}, expected 1 to 5")
     names = entry_names(names, catch_points)
     out_dir = Path(out_dir)
-    check_same_scenario(out_dir, scenario_path)
+    scenario = scenario or load_scenario()
+    check_same_scenario(out_dir, scenario)
     (out_dir / "cells").mkdir(parents=True, exist_ok=True)
     todo = [n for n in names if not _object_done(out_dir, n, only)]
     start = time.perf_counter()
-    tasks = [(None if scenario_path is None else str(scenario_path), n,
-              str(out_dir), only) for n in todo]
+    tasks = [(scenario, n, str(out_dir), only) for n in todo]
     if tasks:
         runner = _run_ray if backend == "ray" else _run_processes
         for k, name in enumerate(runner(tasks, workers), 1):
@@ -231,7 +232,7 @@ def generate(names: list[str], out_dir: Path, *, workers: int = 1,
         if progress:
             grid.end_progress()
     wall_s = time.perf_counter() - start
-    provenance = assemble(names, out_dir, scenario_path=scenario_path,
+    provenance = assemble(names, out_dir, scenario=scenario,
                           wall_s=wall_s, workers=workers, backend=backend,
                           catch_points=catch_points, computed=len(tasks))
     # provenance.json holds the scenario and the models' digest now
@@ -257,12 +258,13 @@ def robot_models_digest() -> str:
     return digest.hexdigest()[:16]
 
 
-def scenario_text(scenario_path=None) -> str:
-    """The scenario as the data set records it (its every value, YAML)."""
-    return scenario_yaml(load_scenario(scenario_path))
+def scenario_text(scenario=None) -> str:
+    """The scenario as the data set records it (its every value, YAML);
+    None: the shipped one."""
+    return scenario_yaml(scenario or load_scenario())
 
 
-def check_same_scenario(out_dir: Path, scenario_path=None) -> None:
+def check_same_scenario(out_dir: Path, scenario=None) -> None:
     """Entries are resumed and assembled only under the scenario they were
     computed with: the one in out_dir's provenance.json, or, before a run
     has finished, in its scenario.yaml (written here for a new data set).
@@ -271,7 +273,7 @@ def check_same_scenario(out_dir: Path, scenario_path=None) -> None:
     provenance. So are other robot model files (sdf/, which the scenario
     names by path only), when the data set recorded their digest."""
     _check_same_models(out_dir)
-    current = scenario_text(scenario_path)
+    current = scenario_text(scenario)
     provenance, started = out_dir / "provenance.json", out_dir / "scenario.yaml"
     stored = None
     if provenance.exists():
@@ -353,7 +355,7 @@ def _run_processes(tasks, workers):
         yield from pool.imap_unordered(_object_task, tasks)
 
 
-def _remote_entry(scenario_text, entry, only):
+def _remote_entry(scenario, entry, only):
     """One entry's _object_task on a Ray worker, in a scratch directory of
     its own machine (a cluster's nodes share no filesystem with the driver):
     returns the entry, its plan file's text and its cells file's text (None
@@ -362,12 +364,7 @@ def _remote_entry(scenario_text, entry, only):
     with tempfile.TemporaryDirectory() as scratch:
         scratch = Path(scratch)
         (scratch / "cells").mkdir()
-        scenario_path = None
-        if scenario_text is not None:
-            scenario_path = scratch / "scenario.yaml"
-            scenario_path.write_text(scenario_text)
-        _object_task((None if scenario_path is None else str(scenario_path),
-                      entry, str(scratch), only))
+        _object_task((scenario, entry, str(scratch), only))
         cells = scratch / "cells" / f"{entry}.jsonl"
         return (entry, (scratch / "plans" / f"{entry}.json").read_text(),
                 cells.read_text() if cells.exists() else None)
@@ -413,14 +410,9 @@ def _run_ray(tasks, workers):
         # result does not depend on where or how often it is computed, and
         # only the returned result is written, so no cell is written twice.
         remote = ray.remote(num_cpus=1)(_remote_entry)
-        texts = {}  # scenario file -> its text, read once
         waiting = {}  # task -> the output directory of its entry
-        for scenario_path, entry, out_dir, only in tasks:
-            if scenario_path not in texts:
-                texts[scenario_path] = (None if scenario_path is None
-                                        else Path(scenario_path).read_text())
-            waiting[remote.remote(texts[scenario_path], entry, only)] = \
-                Path(out_dir)
+        for scenario, entry, out_dir, only in tasks:
+            waiting[remote.remote(scenario, entry, only)] = Path(out_dir)
         while waiting:
             ready, _ = ray.wait(list(waiting), num_returns=1)
             out_dir = waiting.pop(ready[0])
@@ -445,7 +437,7 @@ def load_map(out_dir: Path, name: str) -> np.ndarray:
     return caught
 
 
-def assemble(names, out_dir: Path, *, scenario_path=None, wall_s=None,
+def assemble(names, out_dir: Path, *, scenario=None, wall_s=None,
              workers=None, backend=None, catch_points=1,
              computed=None) -> dict:
     """Writes samples.csv, maps.npz and provenance.json from the per-entry
@@ -491,7 +483,7 @@ def assemble(names, out_dir: Path, *, scenario_path=None, wall_s=None,
         "label_rule": "most robust catching cell (Chebyshev distance to the "
                       "nearest failed cell); ties: nearest the tied cells' "
                       "mean, then lowest indices",
-        "scenario": scenario_text(scenario_path),
+        "scenario": scenario_text(scenario),
         "catalogue_sha256": hashlib.sha256(
             Path(CATALOGUE_PATH).read_bytes()).hexdigest(),
         "robot_models_sha256": robot_models_digest(),

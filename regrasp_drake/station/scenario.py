@@ -378,6 +378,13 @@ class Scenario:
     monitor: MonitorConfig = dc.field(default_factory=MonitorConfig)
     regrasp: RegraspConfig = dc.field(default_factory=RegraspConfig)
 
+    def __reduce__(self):
+        # Drake's config types do not pickle: a scenario travels to a worker
+        # process (or a Ray task) as its YAML, every value, and is loaded
+        # back from it there, so workers get the caller's scenario as data.
+        return (_scenario_from_yaml, (scenario_yaml(self),))
+
+
     @property
     def time_step_s(self) -> float:
         """Deprecated: plant_config.time_step, [s] (read only)."""
@@ -387,6 +394,10 @@ class Scenario:
         # Drake's config structs compare by identity: compare the values.
         return (isinstance(other, Scenario)
                 and scenario_yaml(self) == scenario_yaml(other))
+
+
+def _scenario_from_yaml(text: str) -> Scenario:
+    return yaml_load_typed(schema=Scenario, data=text)
 
 
 _APPROXIMATIONS = ("sap", "similar", "lagged")

@@ -14,10 +14,11 @@ discrete step and a CENIC accuracy tend to the same release?).
 """
 
 import argparse
-import importlib.util
 import json
 import sys
 from pathlib import Path
+
+from regrasp_drake.convergence import release_differences
 
 FIGURES = (("spin_rad_per_s", "spin change, rad/s", 0.05, 3),
            ("velocity_mm_per_s", "velocity change, mm/s", 10.0, 2),
@@ -76,18 +77,13 @@ def table(runs: dict, objects: list) -> str:
 
 def cross(runs: dict, a: str, b: str, objects: list) -> str:
     """The four figures between run a's fine setting and run b's."""
-    path = (Path(__file__).parents[2] / "benchmarks"
-            / "release_convergence.py")
-    spec = importlib.util.spec_from_file_location("_release", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
     out = [f"\n**{a} (fine) against {b} (fine)**\n",
            "| object | " + " | ".join(t for _, t, _, _ in FIGURES) + " |",
            "|---|" + "---:|" * len(FIGURES)]
     for name in objects:
         if name not in runs[a] or name not in runs[b]:
             continue
-        d = module.differences(runs[a][name]["fine"], runs[b][name]["fine"])
+        d = release_differences(runs[a][name]["fine"], runs[b][name]["fine"])
         out.append(f"| {name} | " + " | ".join(
             "-" if d[k] is None else f"{d[k]:.{n}f}"
             for k, _, _, n in FIGURES) + " |")

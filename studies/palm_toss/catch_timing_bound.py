@@ -17,6 +17,9 @@ the palm can wait
     .venv/bin/python studies/palm_toss/catch_timing_bound.py
 """
 
+# regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
+# (regrasp_drake/numerics.py), so that results match across x86-64 machines.
+import regrasp_drake  # noqa: F401, I001 (first, see above)
 import argparse
 
 import numpy as np
