@@ -10,8 +10,6 @@ line as soon as it is known, and a run resumes from that file.
 import json
 import multiprocessing
 import os
-import sys
-import time
 from pathlib import Path
 
 import torch
@@ -29,6 +27,7 @@ from regrasp_drake.parameter_space import (  # noqa: F401 (nearest_cell: re-expo
     nearest_cell,
 )
 from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.progress import bar as progress_bar
 from regrasp_drake.station.branching import run_cells
 from regrasp_drake.station.scenario import load_scenario, scenario_digest
 from regrasp_drake.throw_catch import plan_catches, watch
@@ -64,16 +63,15 @@ def append_rows(function, tasks, path: Path, done: dict, key, *,
     appends each result row to the JSON-lines file at path as it finishes
     (flushed, in the tasks' order), into `done` under key(row) too, with a
     progress bar: a killed run resumes with read_rows(path, key)."""
-    start = time.perf_counter()
     ctx = multiprocessing.get_context("fork")
-    with ctx.Pool(workers) as pool, open_rows(path) as f:
-        for n, row in enumerate(pool.imap(function, tasks), 1):
+    with (ctx.Pool(workers) as pool, open_rows(path) as f,
+          progress_bar(len(tasks), label, unit) as shown):
+        for row in pool.imap(function, tasks):
             check_interrupt()
             f.write(json.dumps(row) + "\n")
             f.flush()
             done[key(row)] = row
-            print_progress(n, len(tasks), start, label, unit)
-    end_progress()
+            shown.update()
 
 
 def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
@@ -90,22 +88,18 @@ def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
     todo = [c for c in wanted if c not in done]
     if not todo:
         return done
-    start = time.perf_counter()
-    with open_rows(out) as f:
+    with (open_rows(out) as f,
+          progress_bar(len(todo), obj.name, enabled=progress) as shown):
         def write(i, row):
             row = {"cell": list(todo[i])} | row
             f.write(json.dumps(row) + "\n")
             f.flush()
             os.fsync(f.fileno())
             done[todo[i]] = row
-            if progress:
-                print_progress(len(done) - (len(wanted) - len(todo)), len(todo),
-                          start, obj.name)
+            shown.update()
         run_cells(scenario, obj, ik=ik, X_WG=plan.X_WG,
                   parameters=[cell_parameters(c) for c in todo],
                   workers=workers, on_result=write)
-    if progress:
-        end_progress()
     return done
 
 
@@ -165,27 +159,6 @@ def check_resume(out: Path, source: dict, flag: str = "--out") -> None:
             "were computed from, expected a new file or one this command "
             f"began: give another {flag}")
     side.write_text(json.dumps(source, indent=1) + "\n")
-
-
-def print_progress(n, total, start, label="", unit="cells"):
-    """A progress bar on stderr: redrawn in place on a terminal; elsewhere (a
-    log file) one line at every tenth of the work, and at its end."""
-    elapsed = time.perf_counter() - start
-    rate = n / elapsed if elapsed > 0 else 0.0
-    left = (total - n) / rate if rate > 0 else float("inf")
-    bar = "#" * int(30 * n / total)
-    line = (f"{label} [{bar:<30}] {n}/{total} {unit}, {rate:.2f} {unit}/s, "
-            f"{left:.0f} s left")
-    if sys.stderr.isatty():
-        print("\r" + line, end="", file=sys.stderr, flush=True)
-    elif n == total or 10 * n // total > 10 * (n - 1) // total:
-        print(line, file=sys.stderr, flush=True)
-
-
-def end_progress():
-    """Ends a terminal's progress bar (print_progress) with a newline."""
-    if sys.stderr.isatty():
-        print(file=sys.stderr)
 
 
 def ending(row: dict) -> str:

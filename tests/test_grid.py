@@ -208,22 +208,27 @@ class CatchPointPlanTest(unittest.TestCase):
 
 
 class ProgressTest(unittest.TestCase):
-    """Off a terminal (a log file) the progress bar writes whole lines, one
-    at every tenth of the work, instead of redrawing one line with \\r."""
+    """The progress bar is drawn on a terminal and left out of a log file
+    or a pipe (tqdm's disable=None)."""
 
-    def test_lines_in_a_log(self):
+    def _drawn(self, tty: bool, enabled: bool = True) -> str:
         import contextlib
         import io
-        import time
 
-        from regrasp_drake.grid import end_progress, print_progress
-        log = io.StringIO()
-        with contextlib.redirect_stderr(log):
-            start = time.perf_counter()
-            for n in range(1, 26):
-                print_progress(n, 25, start, "obj")
-            end_progress()
-        lines = log.getvalue().splitlines()
-        self.assertEqual(len(lines), 10)
-        self.assertNotIn("\r", log.getvalue())
-        self.assertTrue(lines[-1].startswith("obj [" + "#" * 30 + "] 25/25 cells"))
+        from regrasp_drake.progress import bar
+
+        class Stream(io.StringIO):
+            def isatty(self):
+                return tty
+        stream = Stream()
+        with contextlib.redirect_stderr(stream):
+            with bar(25, "obj", enabled=enabled) as shown:
+                for _ in range(25):
+                    shown.update()
+        return stream.getvalue()
+
+    def test_drawn_on_a_terminal_only(self):
+        self.assertIn("obj: 100%", self._drawn(tty=True))
+        self.assertIn("25/25 [", self._drawn(tty=True))
+        self.assertEqual(self._drawn(tty=False), "")
+        self.assertEqual(self._drawn(tty=True, enabled=False), "")

@@ -73,6 +73,7 @@ from regrasp_drake.parameter_space import (
 )
 from regrasp_drake.paths import REPO_DIR
 from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.progress import bar as progress_bar
 from regrasp_drake.station.scenario import load_scenario, scenario_yaml
 from regrasp_drake.throw_catch import plan_catches, watch
 from regrasp_drake.world.objects import (
@@ -226,11 +227,11 @@ def generate(names: list[str], out_dir: Path, *, workers: int = 1,
     tasks = [(scenario, n, str(out_dir), only) for n in todo]
     if tasks:
         runner = _run_ray if backend == "ray" else _run_processes
-        for k, name in enumerate(runner(tasks, workers), 1):
-            if progress:
-                grid.print_progress(k, len(tasks), start, name, unit="entries")
-        if progress:
-            grid.end_progress()
+        with progress_bar(len(tasks), "data set", "entries",
+                          enabled=progress) as shown:
+            for name in runner(tasks, workers):
+                shown.set_postfix_str(name)
+                shown.update()
     wall_s = time.perf_counter() - start
     provenance = assemble(names, out_dir, scenario=scenario,
                           wall_s=wall_s, workers=workers, backend=backend,

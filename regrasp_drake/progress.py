@@ -1,0 +1,17 @@
+"""The progress bars of the long commands (maps, data sets, benchmarks):
+tqdm's, on stderr, drawn only when stderr is a terminal (tqdm's
+disable=None), so that logs and piped output hold none of them."""
+
+import sys
+
+from tqdm import tqdm
+
+
+def bar(total: int, label: str = "", unit: str = "cells", *,
+        enabled: bool = True) -> tqdm:
+    """A progress bar over `total` items of `unit`, labelled `label`; shown
+    when `enabled` and stderr is a terminal. Use it as a context manager
+    and call update() as each item finishes."""
+    return tqdm(total=total, desc=label, unit=f" {unit}", file=sys.stderr,
+                disable=None if enabled else True, dynamic_ncols=True,
+                leave=True)
