@@ -169,6 +169,19 @@ def _cmd_throw(args) -> int:
     return 0
 
 
+def _cmd_diagram(args) -> int:
+    if args.max_depth < 1:
+        raise InputError(f"--max-depth: got {args.max_depth}, expected an "
+                         "integer >= 1")
+    scenario, obj, _, _ = _scenario_and_object(args)
+    from regrasp_drake.throw_catch import episode_graphviz
+    args.out.write_text(episode_graphviz(scenario, obj,
+                                         max_depth=args.max_depth))
+    print(f"diagram: {args.out} (a picture: dot -Tpng {args.out} -o "
+          f"{args.out.with_suffix('.png')})")
+    return 0
+
+
 def _load_network(args, scenario):
     """The MLP of --weights (default: the scenario's catch.weights in
     models/), refused with one line naming the file."""
@@ -504,6 +517,19 @@ def make_parser() -> argparse.ArgumentParser:
                         "the label cell framed")
     p.set_defaults(func=_cmd_grid)
 
+    p = sub.add_parser("diagram", help="the catching episode's Drake Diagram "
+                                       "as Graphviz (and a PNG with dot)")
+    _add_object_args(p)
+    scenario_args.add(p)
+    p.add_argument("--out", type=Path, metavar="F",
+                   default=_InOutDir("diagram.dot"),
+                   help="the Graphviz file (default: diagram.dot in "
+                        "--out-dir)")
+    p.add_argument("--max-depth", type=int, default=1, metavar="N",
+                   help="levels of subsystems drawn (default 1)")
+    _add_out_dir_arg(p)
+    p.set_defaults(func=_cmd_diagram)
+
     p = sub.add_parser("throw", help="the observation throw and its offline "
                                      "stage: catch points and the hand's pose")
     _add_object_args(p)
@@ -664,6 +690,7 @@ _OUTPUTS = {
     "catch": {"html": "replay", "json": "json", "plot": "plot"},
     "grid": {"out": "map", "plot": "plot"},
     "throw": {"json": "json", "plot": "plot"},
+    "diagram": {"out": "diagram"},
     "learn": {"library": "library", "html": "replay", "json": "json",
               "plot": "plot"},
     "regrasp": {"library": "library", "html": "replay", "json": "json",
@@ -808,6 +835,7 @@ _OURS = {
                 lambda path: _refusal(_load_weights, path)),
     "flight model": ("a flight predictor",
                      lambda path: _refusal(_load_flight_model, path)),
+    "diagram": ("a Graphviz digraph", lambda path: _diagram_reason(path)),
     "offset prior": ("an offset prior",
                      lambda path: _refusal(_load_offset_prior, path)),
 }
@@ -879,6 +907,13 @@ def _replay_reason(path: Path) -> str | None:
     if b"<title>Drake MeshCat</title>" in head:
         return None
     return "no <title>Drake MeshCat</title> in its first 4096 bytes"
+
+
+def _diagram_reason(path: Path) -> str | None:
+    """Drake's Graphviz text begins with `digraph`."""
+    with open(path, "rb") as f:
+        head = f.read(64)
+    return None if head.startswith(b"digraph") else "it does not begin with digraph"
 
 
 def _table_reason(path: Path) -> str | None:

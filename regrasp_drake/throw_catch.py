@@ -38,6 +38,7 @@ from regrasp_drake.station.episode import (
 )
 from regrasp_drake.station.replay import draw_path, framing_view, save_html
 from regrasp_drake.station.scenario import Scenario, target_of
+from regrasp_drake.station.station import build_episode_diagram
 from regrasp_drake.world.objects import ObjectSpec
 
 
@@ -362,6 +363,23 @@ def catch_once(scenario: Scenario, obj: ObjectSpec, *, h_catch: float,
         at_release=release_correction(scenario, obj, ik, plan,
                                       (h_catch, h_down)))
     return result, plan
+
+
+def episode_graphviz(scenario: Scenario, obj: ObjectSpec, *,
+                     max_depth: int = 1) -> str:
+    """The catching episode's Diagram as `catch` builds it for `obj`, in
+    Graphviz's language (Drake's Diagram.GetGraphvizString, `max_depth`
+    levels of subsystems): the throw watched and the catch planned first,
+    so that the grasp pose is the planned one and, when the scenario's
+    catch.parameter_source is "mlp", the MLP system is fed the planned
+    features (v_catch and the object's)."""
+    ik = ArmIk(scenario.directives)
+    watched = watch(scenario, obj, ik)
+    plan = plan_watched(scenario, obj, ik, watched)
+    features = [plan.catch_point.v_catch, *obj.features().values()]
+    episode = build_episode_diagram(scenario, obj, ik=ik, X_WG=plan.X_WG,
+                                    mlp_features=features)
+    return episode.diagram.GetGraphvizString(max_depth=max_depth)
 
 
 # The replay's camera looks at the throw from this direction (from the target

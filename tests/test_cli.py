@@ -86,6 +86,26 @@ class TestCli(unittest.TestCase):
                 self.assertIn("--scenario-name", flags)
                 self.assertIn("--scenario-text", flags)
 
+    def test_diagram_writes_the_catching_episodes_systems(self):
+        # The Fast scenario (1 ms) with the MLP as the parameters' source:
+        # the diagram holds every system of the design, wired.
+        with tempfile.TemporaryDirectory() as d:
+            out = Path(d) / "episode.dot"
+            result = _run("diagram", "--object", "table1-row2",
+                          "--scenario-name", "Fast", "--scenario-text",
+                          "{catch: {parameter_source: mlp}}", "--out", out)
+            self.assertEqual(result.returncode, 0, result.stderr)
+            text = out.read_text()
+        self.assertTrue(text.startswith("digraph"))
+        for system in ("name=plant", "name=arm_controller",
+                       "name=catch_state_machine", "name=mlp",
+                       "name=grasp_monitor", "name=infrared", "name=bumper"):
+            self.assertIn(system, text)
+        result = _run("diagram", "--object", "table1-row2", "--max-depth", "0")
+        self.assertEqual(result.returncode, 2)
+        self.assertIn("--max-depth: got 0, expected an integer >= 1",
+                      result.stderr)
+
     def test_bad_scenario_name_or_text_refused_in_one_line(self):
         for args, expected in (
                 (["--scenario-text", "{catch: {return_s: 9}}"],
@@ -379,6 +399,7 @@ class OutputChecksTest(unittest.TestCase):
                              "--h-down", "-0.05"],
                    "grid": ["--object", "table1-row2"],
                    "throw": ["--object", "table1-row2"],
+                   "diagram": ["--object", "table1-row2"],
                    "learn": ["--object", "table1-row2"],
                    "regrasp": ["--object", "table1-row2", "--target", "flip"],
                    "apply": ["--object", "table1-row2"]}
