@@ -329,10 +329,10 @@ class OutputChecksTest(unittest.TestCase):
 
     def _accepted(self, argv):
         """The outputs of argv pass every check (the command is not run)."""
-        from regrasp_drake import cli
+        from regrasp_drake import cli, outputs
         args = cli.make_parser().parse_args([str(a) for a in argv])
-        cli._fill_defaults(args)
-        cli._check_outputs(args)
+        outputs.fill_defaults(args)
+        outputs.check_outputs(args)
         return args
 
     def test_an_output_that_is_another_output_or_an_input(self):
@@ -378,7 +378,7 @@ class OutputChecksTest(unittest.TestCase):
         self.assertIn("--workers: got 100000", err.getvalue())
 
     def test_every_path_argument_is_an_input_or_a_checked_output(self):
-        from regrasp_drake import cli
+        from regrasp_drake import cli, outputs
         parser = cli.make_parser()
         commands = parser._subparsers._group_actions[0].choices
         for command, sub in commands.items():
@@ -387,14 +387,14 @@ class OutputChecksTest(unittest.TestCase):
                     continue
                 with self.subTest(command=command, argument=action.dest):
                     self.assertTrue(
-                        action.dest in cli._OUTPUTS.get(command, {})
-                        or action.dest in cli._INPUTS
+                        action.dest in outputs.OUTPUTS.get(command, {})
+                        or action.dest in outputs.INPUTS
                         or (command, action.dest) == ("apply", "library"))
 
     def test_every_output_refuses_an_existing_file_not_ours(self):
         # Each output of each command, given a file of notes (or a
         # directory holding one where a directory is written).
-        from regrasp_drake import cli
+        from regrasp_drake import outputs
         minimal = {"catch": ["--object", "table1-row2", "--h-catch", "0.2",
                              "--h-down", "-0.05"],
                    "grid": ["--object", "table1-row2"],
@@ -404,8 +404,8 @@ class OutputChecksTest(unittest.TestCase):
                    "regrasp": ["--object", "table1-row2", "--target", "flip"],
                    "apply": ["--object", "table1-row2"]}
         refused = 0
-        for command, outputs in cli._OUTPUTS.items():
-            for dest, holds in outputs.items():
+        for command, written in outputs.OUTPUTS.items():
+            for dest, holds in written.items():
                 flag = "--" + dest.replace("_", "-")
                 with self.subTest(command=command, output=flag), \
                         tempfile.TemporaryDirectory() as d:
@@ -414,7 +414,7 @@ class OutputChecksTest(unittest.TestCase):
                                  else "table1-row1.jsonl" if holds == "maps"
                                  else "notes.txt")
                     notes.write_text("my notes\n")
-                    target = d if holds in cli._DIRECTORIES else notes
+                    target = d if holds in outputs.DIRECTORIES else notes
                     argv = [command, *minimal.get(command, []), flag, target]
                     if (command in ("learn", "regrasp", "table1")
                             and dest != "library"):
@@ -422,7 +422,7 @@ class OutputChecksTest(unittest.TestCase):
                     self._refused(argv, f"{flag}", "expected a new",
                                   kept=[notes])
                     refused += 1
-        self.assertEqual(refused, sum(map(len, cli._OUTPUTS.values())))
+        self.assertEqual(refused, sum(map(len, outputs.OUTPUTS.values())))
 
     def test_table1_refuses_a_stray_file_in_its_maps_dir_at_once(self):
         # Each object's map and plot in --maps-dir are outputs as grid's

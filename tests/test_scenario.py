@@ -14,11 +14,11 @@ from regrasp_drake.input_files import parse_yaml
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.scenario import (
     Scenario,
-    check_catch_parameters,
     load_scenario,
     scenario_digest,
     scenario_yaml,
 )
+from regrasp_drake.station.scenario_checks import check_catch_parameters
 from regrasp_drake.station.station import build_episode_diagram, initialize
 from regrasp_drake.world.objects import load_catalogue
 

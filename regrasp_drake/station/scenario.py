@@ -5,7 +5,7 @@ own `MultibodyPlantConfig` (`plant_config`), `SimulatorConfig`
 (`simulator_config`) and the robot's model directives (`directives`) beside
 the project's fields. It is loaded from YAML with
 pydrake's `yaml_load_typed` (unknown keys and values of the wrong type are
-refused first, naming the field: `check_schema`), then range-checked field
+refused first, naming the field: yaml_schema.check_schema), then range-checked field
 by field. The defaults below are the shipped scenario; a scenario need only
 name the fields it changes.
 
@@ -13,23 +13,15 @@ Named scenarios live in one YAML file (SCENARIOS_PATH: name -> scenario);
 `load_scenario` reads a plain scenario file, or a name from such a file,
 then merges YAML text over it (`--scenario-text '{catch: {return_s: 0.4}}'`).
 
-Bounds (`validate`): each field of the project's range is in validate, and
-of `plant_config` what the station relies on (the time step's range, point
-contact, an approximation that converges on throw impacts); and for every
-field of the project, whatever its section: every number finite; every arm
-joint angle (a list of 6 named `*_q_rad`, or a list of such lists) within
-the PUMA 560's joint limits read from sdf/puma560.sdf (`arm_joint_limits`);
-the throw's knot times increasing from 0, at most 10 s. The file is read
-within the limits of regrasp_drake/input_files.py (size, nesting, aliases,
-duplicate keys); `1e5` is a number; Drake's tags (`!Rpy {deg: [...]}`) are
-read in the directives.
+Bounds (`validate`, station/scenario_checks.py): every field's range. The
+file is read within the limits of regrasp_drake/input_files.py (size,
+nesting, aliases, duplicate keys); `1e5` is a number; Drake's tags
+(`!Rpy {deg: [...]}`) are read in the directives.
 """
 
 import copy
 import dataclasses as dc
 import hashlib
-import math
-import re
 import typing
 from pathlib import Path
 
@@ -37,20 +29,17 @@ from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
 from pydrake.multibody.parsing import ModelDirective
 from pydrake.multibody.plant import MultibodyPlantConfig
 from pydrake.systems.analysis import (
-    GetIntegrationSchemes,
     SimulatorConfig,
 )
 
-from regrasp_drake.errors import InputError, field_error, quote
+from regrasp_drake.errors import InputError, field_error
 from regrasp_drake.input_files import Tagged, dump_yaml, load_yaml, parse_yaml
-from regrasp_drake.parameter_space import H_CATCH_RANGE, H_DOWN_RANGE
-from regrasp_drake.planning.grasp import TARGET_KINDS, Target
+from regrasp_drake.planning.grasp import Target
+from regrasp_drake.station.scenario_checks import validate
 from regrasp_drake.world.robot import (
-    ARM_MODEL_NAME,
-    HAND_MODEL_NAME,
-    arm_joint_limits,
     robot_directives,
 )
+from regrasp_drake.yaml_schema import check_schema
 
 # The named scenarios (name -> scenario), and the one used by default.
 SCENARIOS_PATH = Path(__file__).resolve().parents[1] / "scenarios.yaml"
@@ -400,181 +389,6 @@ def _scenario_from_yaml(text: str) -> Scenario:
     return yaml_load_typed(schema=Scenario, data=text)
 
 
-_APPROXIMATIONS = ("sap", "similar", "lagged")
-_THROWS = ("fingers", "palm_toss")
-_PALMS = ("box", "pads")
-_OBJECT_BOXES = ("exact", "rounded")
-_SOURCES = ("fixed", "mlp")
-
-
-def _in_range(field, value, lo, hi, unit=""):
-    if not (isinstance(value, (int, float)) and math.isfinite(value)
-            and lo <= value <= hi):
-        raise field_error(field, value, f"a number in [{lo}, {hi}]{unit}")
-
-
-def _check_generic(value, field: str = "") -> None:
-    """The checks of every field (module docstring): finite numbers, arm
-    joint angles within the PUMA's limits."""
-    if dc.is_dataclass(value):
-        for f in dc.fields(value):
-            name = f"{field}.{f.name}" if field else f.name
-            _check_generic(getattr(value, f.name), name)
-    elif isinstance(value, float) and not math.isfinite(value):
-        raise field_error(field, value, "a finite number")
-    elif isinstance(value, list):
-        for i, item in enumerate(value):
-            _check_generic(item, f"{field}[{i}]")
-        named = re.sub(r"(\[\d+\])+$", "", field)
-        if named.endswith("_q_rad") and not any(isinstance(v, list) for v in value):
-            if len(value) != 6:
-                raise field_error(field, value, "6 joint angles")
-            for i, (q, (lo, hi)) in enumerate(zip(value, arm_joint_limits())):
-                _in_range(f"{field}[{i}]", q, lo, hi,
-                          f" rad (joint{i + 1}'s limits in puma560.sdf)")
-
-
-def validate(s: Scenario) -> Scenario:
-    """Checks every field's range; returns `s` or raises InputError."""
-    _check_generic(s)
-    dt = s.plant_config.time_step
-    if dt != 0.0:
-        _in_range("plant_config.time_step", dt, 1e-5, 5e-3,
-                  " s, or 0 (a continuous plant)")
-    _check_simulator_config(s.simulator_config, continuous=dt == 0.0)
-    if s.catch_time_step_s is not None:
-        if dt == 0.0:
-            raise field_error("catch_time_step_s", s.catch_time_step_s,
-                              "null with a continuous plant "
-                              "(plant_config.time_step 0)")
-        _in_range("catch_time_step_s", s.catch_time_step_s, dt, 5e-3,
-                  f" s (at least plant_config.time_step = {dt} s)")
-    _check_directives(s.directives)
-    if s.plant_config.contact_model != "point":
-        raise field_error("plant_config.contact_model",
-                          s.plant_config.contact_model, "'point'")
-    if s.plant_config.discrete_contact_approximation not in _APPROXIMATIONS:
-        raise field_error("plant_config.discrete_contact_approximation",
-                          s.plant_config.discrete_contact_approximation,
-                          f"one of {_APPROXIMATIONS}")
-    _in_range("gravity_m_per_s2", s.gravity_m_per_s2, 0.0, 30.0, " m/s²")
-    c = s.contact
-    for name, value, allowed in (("palm", c.palm, _PALMS),
-                                 ("object_boxes", c.object_boxes,
-                                  _OBJECT_BOXES)):
-        if value not in allowed:
-            raise field_error(f"contact.{name}", value, f"one of {allowed}")
-    _in_range("contact.friction_coefficient", c.friction_coefficient, 0.0, 5.0)
-    _in_range("contact.point_stiffness_N_per_m", c.point_stiffness_N_per_m,
-              1.0, 1e8, " N/m")
-    _in_range("contact.hunt_crossley_dissipation_s_per_m",
-              c.hunt_crossley_dissipation_s_per_m, 0.0, 1e3, " s/m")
-    for name in ("kp", "ki", "kd"):
-        gains = getattr(s.arm, name)
-        if len(gains) != 6:
-            raise field_error(f"arm.{name}", gains, "6 gains, one per arm joint")
-        for i, g in enumerate(gains):
-            _in_range(f"arm.{name}[{i}]", g, 0.0, 1e6)
-    t = s.throw
-    if t.kind not in _THROWS:
-        raise field_error("throw.kind", t.kind, f"one of {_THROWS}")
-    _in_range("throw.settle_s", t.settle_s, 0.0, 5.0, " s")
-    p = t.toss
-    _in_range("throw.toss.launch_speed_m_per_s", p.launch_speed_m_per_s,
-              0.5, 5.0, " m/s")
-    _in_range("throw.toss.lift_s", p.lift_s, 0.05, 1.0, " s")
-    _in_range("throw.toss.brake_deceleration_m_per_s2",
-              p.brake_deceleration_m_per_s2,
-              round(1.3 * s.gravity_m_per_s2, 4), 100.0,
-              " m/s² (at least 1.3 g: the object must leave the palm)")
-    _in_range("throw.toss.brake_ramp_s", p.brake_ramp_s, 0.005, 0.2, " s")
-    _in_range("throw.toss.spin_rad_per_s", p.spin_rad_per_s, -15.0, 15.0,
-              " rad/s")
-    _in_range("throw.toss.spin_hold_s", p.spin_hold_s, 0.0, 0.2, " s")
-    _in_range("throw.toss.spin_stop_s", p.spin_stop_s, 0.02, 1.0, " s")
-    if len(t.knot_times_s) < 2 or len(t.knot_times_s) != len(t.knot_q_rad):
-        raise field_error("throw.knot_times_s", t.knot_times_s,
-                          "at least 2 times, one per entry of throw.knot_q_rad")
-    if t.knot_times_s[0] != 0.0 or t.knot_times_s[-1] > 10.0 or not all(
-            b > a for a, b in zip(t.knot_times_s, t.knot_times_s[1:])):
-        raise field_error("throw.knot_times_s", t.knot_times_s,
-                          "increasing times starting at 0, at most 10 s")
-    for i, q in enumerate(t.knot_q_rad):
-        if len(q) != 6:
-            raise field_error(f"throw.knot_q_rad[{i}]", q, "6 joint angles")
-    _in_range("throw.release_time_s", t.release_time_s, 0.0,
-              t.knot_times_s[-1], " s")
-    _in_range("throw.hold_closure", t.hold_closure, 0.0, 1.0)
-    _in_range("throw.park_joint1_offset_rad", t.park_joint1_offset_rad,
-              -math.pi, math.pi, " rad")
-    _in_range("throw.noise.release_time_std_s", t.noise.release_time_std_s,
-              0.0, 0.05, " s")
-    _in_range("throw.noise.joint_velocity_std_rad_per_s",
-              t.noise.joint_velocity_std_rad_per_s, 0.0, 1.0, " rad/s")
-    if not isinstance(t.noise.seed, int) or t.noise.seed < 0:
-        raise field_error("throw.noise.seed", t.noise.seed,
-                          "an integer >= 0")
-    n = s.sensors
-    _in_range("sensors.period_s", n.period_s, max(dt, 1e-4), 0.05, " s")
-    for name, step in (("plant_config.time_step", dt),
-                       ("catch_time_step_s", s.catch_time_step_s)):
-        ratio = n.period_s / step if step else 1.0
-        if abs(ratio - round(ratio)) > 1e-9 * ratio:
-            raise field_error("sensors.period_s", n.period_s,
-                              f"a whole multiple of {name} = {step} s")
-    _in_range("sensors.palm_range_m", n.palm_range_m, 0.01, 1.0, " m")
-    _in_range("sensors.approach_range_m", n.approach_range_m, 0.40, 2.0, " m")
-    _in_range("sensors.levels", n.levels, 2, 1e6)
-    k = s.catch
-    _in_range("catch.catch_height_m", k.catch_height_m, 0.2, 1.6, " m")
-    _in_range("catch.tilt_tolerance", k.tilt_tolerance, 0.0, 1.0)
-    _in_range("catch.height_band_m", k.height_band_m, 0.0, 1.0, " m")
-    _in_range("catch.palm_com_margin_m", k.palm_com_margin_m, 0.0, 0.05, " m")
-    _in_range("catch.palm_toward_landing_end_m", k.palm_toward_landing_end_m,
-              0.0, 0.03, " m")
-    _in_range("catch.palm_toward_fingers_m", k.palm_toward_fingers_m, 0.0,
-              0.03, " m")
-    _in_range("catch.palm_across_com_fraction", k.palm_across_com_fraction,
-              0.0, 1.0)
-    if len(k.ik_seed_q_rad) != 6:
-        raise field_error("catch.ik_seed_q_rad", k.ik_seed_q_rad, "6 joint angles")
-    _in_range("catch.move_to_grasp_s", k.move_to_grasp_s, 0.05, 3.0, " s")
-    _in_range("catch.max_move_torque_fraction", k.max_move_torque_fraction,
-              0.05, 1.0)
-    _in_range("catch.grasp_tolerance_m", k.grasp_tolerance_m, 1e-5, 0.05, " m")
-    _in_range("catch.preshape_closure", k.preshape_closure, 0.0, 0.8)
-    if k.preshape_distal_closure is not None:
-        _in_range("catch.preshape_distal_closure", k.preshape_distal_closure,
-                  0.0, 0.8)
-    _in_range("catch.lower_speed_m_per_s", k.lower_speed_m_per_s, 0.01, 5.0,
-              " m/s")
-    _in_range("catch.palm_stop_level", k.palm_stop_level, 0, n.levels)
-    _in_range("catch.return_s", k.return_s, 0.05, 3.0, " s")
-    if k.parameter_source not in _SOURCES:
-        raise field_error("catch.parameter_source", k.parameter_source,
-                          f"one of {_SOURCES}")
-    check_catch_parameters(k.h_catch_m, k.h_down_m,
-                           names=("catch.h_catch_m", "catch.h_down_m"))
-    m = s.monitor
-    _in_range("monitor.palm_grasp_level", m.palm_grasp_level, 0, n.levels)
-    _in_range("monitor.ir_window_s", m.ir_window_s, 0.0, 2.0, " s")
-    _in_range("monitor.bumper_window_s", m.bumper_window_s, 0.0, 2.0, " s")
-    _in_range("monitor.finger_stall_rad", m.finger_stall_rad, 0.0, 1.0,
-              " rad")
-    _in_range("monitor.finger_rest_rad_per_s", m.finger_rest_rad_per_s, 0.0,
-              5.0, " rad/s")
-    _in_range("monitor.finger_window_s", m.finger_window_s, 0.0, 2.0, " s")
-    _in_range("monitor.hold_s", m.hold_s, 0.0, 5.0, " s")
-    _in_range("monitor.below_palm_m", m.below_palm_m, 0.0, 1.0, " m")
-    _in_range("monitor.ground_clearance_m", m.ground_clearance_m, 0.0, 1.0, " m")
-    _in_range("monitor.max_time_s", m.max_time_s, 0.5, 60.0, " s")
-    if s.regrasp.target not in TARGET_KINDS:
-        raise field_error("regrasp.target", s.regrasp.target,
-                          f"one of {TARGET_KINDS}")
-    _in_range("regrasp.offset_mm", s.regrasp.offset_mm, -100.0, 100.0, " mm")
-    return s
-
-
 def target_of(s: Scenario) -> Target:
     """The grasp the scenario's catches must end in."""
     return Target(s.regrasp.target, float(s.regrasp.offset_mm))
@@ -592,54 +406,6 @@ def with_target(s: Scenario, target: Target) -> Scenario:
     if target.kind in ("keep", "turn"):
         out.throw.toss.spin_rad_per_s = 0.0
     return validate(out)
-
-
-def _check_directives(directives: list[ModelDirective]) -> None:
-    """The robot's directives add the arm and the hand and weld the hand to
-    one frame of the arm, where the arm-only plant of the controller and the
-    inverse kinematics carries it (robot.make_arm_control_plant)."""
-    models = [d.add_model.name for d in directives if d.add_model]
-    if ARM_MODEL_NAME not in models or HAND_MODEL_NAME not in models:
-        raise field_error("directives", models, f"add_model entries named "
-                          f"{ARM_MODEL_NAME!r} and {HAND_MODEL_NAME!r}")
-    mounts = [d.add_weld.parent for d in directives if d.add_weld
-              and d.add_weld.child.startswith(f"{HAND_MODEL_NAME}::")]
-    if len(mounts) != 1 or not mounts[0].startswith(f"{ARM_MODEL_NAME}::"):
-        raise field_error(
-            "directives", mounts, f"the hand welded (add_weld, child "
-            f"{HAND_MODEL_NAME}::...) to one frame of the arm (parent "
-            f"{ARM_MODEL_NAME}::...)")
-
-
-def _check_simulator_config(c: SimulatorConfig, continuous: bool) -> None:
-    """simulator_config's checks: a scheme Drake knows, and CENIC exactly
-    when the plant is continuous (CENIC refuses a discrete plant; the
-    station's continuous plant is built and tested for CENIC only)."""
-    schemes = tuple(GetIntegrationSchemes())
-    if c.integration_scheme not in schemes:
-        raise field_error("simulator_config.integration_scheme",
-                          c.integration_scheme, f"one of {schemes}")
-    if continuous != (c.integration_scheme == "cenic"):
-        raise field_error(
-            "simulator_config.integration_scheme", c.integration_scheme,
-            "'cenic' with plant_config.time_step 0 (a continuous plant), "
-            "another scheme with a discrete plant")
-    _in_range("simulator_config.accuracy", c.accuracy, 1e-12, 1.0)
-    _in_range("simulator_config.max_step_size", c.max_step_size, 1e-6, 1.0,
-              " s")
-    if c.start_time != 0.0:
-        raise field_error("simulator_config.start_time", c.start_time,
-                          "0 (an episode starts at t = 0 s)")
-    _in_range("simulator_config.target_realtime_rate",
-              c.target_realtime_rate, 0.0, 1e3)
-
-
-def check_catch_parameters(h_catch, h_down,
-                           names=("h_catch_m", "h_down_m")):
-    """Refuses (h_catch, h_down) outside the paper's parameter space, naming
-    the offending one by `names`."""
-    _in_range(names[0], h_catch, *H_CATCH_RANGE, " m")
-    _in_range(names[1], h_down, *H_DOWN_RANGE, " m")
 
 
 def load_scenario(path: str | Path | None = None, *, name: str | None = None,
@@ -781,74 +547,3 @@ def scenario_digest(scenario: Scenario) -> str:
     if scenario.regrasp == RegraspConfig():
         text = text[:text.rindex("regrasp:\n")]
     return hashlib.sha256(text.encode()).hexdigest()[:16]
-
-
-def check_schema(value, schema, field: str) -> None:
-    """Checks parsed YAML `value` against the type `schema` (a dataclass,
-    float, int, str or list of them) before pydrake's loader reads it: an
-    unknown key or a value of the wrong type raises the InputError that
-    names the field (dotted from the top, `field` being this value's).
-    Drake's structs (MultibodyPlantConfig, the directives) are checked
-    likewise; what this does not know (a tagged value, a union, a mapping
-    of names) is left to pydrake's loader."""
-    if isinstance(value, Tagged):
-        return
-    hints = _fields(schema)
-    if hints is not None:
-        if not isinstance(value, dict):
-            raise field_error(field or "the scenario", value,
-                              "a mapping of field: value")
-        for key, item in value.items():
-            if key not in hints:
-                shown = (key if isinstance(key, str) and len(key) <= 64
-                         else quote(key))
-                name = f"{field}.{shown}" if field else shown
-                raise InputError(
-                    f"{name}: unknown field, expected one of "
-                    f"{', '.join(hints)}")
-            name = f"{field}.{key}" if field else str(key)
-            check_schema(item, hints[key], name)
-    elif typing.get_origin(schema) is list:
-        (inner,) = typing.get_args(schema)
-        if not isinstance(value, list):
-            raise field_error(field, value, _type_name(schema))
-        for i, item in enumerate(value):
-            check_schema(item, inner, f"{field}[{i}]")
-    elif typing.get_origin(schema) is typing.Union:
-        kinds = [k for k in typing.get_args(schema) if k is not type(None)]
-        if value is not None and len(kinds) == 1:
-            check_schema(value, kinds[0], field)
-    elif schema in (float, int, str, bool) and not _is_a(value, schema):
-        raise field_error(field, value, _type_name(schema))
-
-
-def _fields(schema) -> dict | None:
-    """The fields (name -> type) of a dataclass or of a pydrake struct, or
-    None for another type."""
-    if dc.is_dataclass(schema):
-        return typing.get_type_hints(schema)
-    if isinstance(schema, type) and hasattr(schema, "__fields__"):
-        return {f.name: f.type for f in schema.__fields__}
-    return None
-
-
-def _is_a(value, kind) -> bool:
-    if isinstance(value, bool):  # YAML's true/false is no number
-        return kind is bool
-    if kind is float:
-        return isinstance(value, (int, float))
-    return isinstance(value, kind)
-
-
-def _type_name(kind, plural: bool = False) -> str:
-    """'a number', 'a list of numbers', 'a list of lists of numbers', …"""
-    if typing.get_origin(kind) is list:
-        (inner,) = typing.get_args(kind)
-        return (("lists" if plural else "a list") + " of "
-                + _type_name(inner, plural=True))
-    names = {float: ("a number", "numbers"), int: ("an integer", "integers"),
-             str: ("a string", "strings"), bool: ("true or false", "booleans")}
-    if _fields(kind) is not None:
-        return ("mappings of field: value" if plural
-                else "a mapping of field: value")
-    return names.get(kind, (str(kind), str(kind)))[plural]
