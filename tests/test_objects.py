@@ -9,12 +9,14 @@ from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, CoulombFriction
 from pydrake.systems.framework import DiagramBuilder
 
 from regrasp_drake.errors import InputError
-from regrasp_drake.world.objects import (
+from regrasp_drake.world.object_model import (
     MAX_BALLAST_DENSITY,
     MIN_BASE_DENSITY,
     Piece,
     add_object,
     count_convex_vertices,
+)
+from regrasp_drake.world.objects import (
     load_catalogue,
     load_object_file,
     resolve_object,

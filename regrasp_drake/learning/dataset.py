@@ -71,7 +71,7 @@ from regrasp_drake.parameter_space import (
     cell_parameters,
     cells,
 )
-from regrasp_drake.paths import REPO_DIR
+from regrasp_drake.paths import REPO_DIR, SDF_DIR
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.progress import bar as progress_bar
 from regrasp_drake.station.scenario import load_scenario, scenario_yaml
@@ -252,7 +252,7 @@ def robot_models_digest() -> str:
     """A sha256 of sdf/'s robot model files (*.sdf, *.dmd.yaml; the
     objects have the catalogue's hash)."""
     digest = hashlib.sha256()
-    sdf = REPO_DIR / "sdf"
+    sdf = SDF_DIR
     for path in sorted(list(sdf.glob("*.sdf")) + list(sdf.glob("*.dmd.yaml"))):
         digest.update(path.name.encode())
         digest.update(path.read_bytes())
@@ -635,7 +635,7 @@ def _code_version() -> str:
     """The git commit (when known) and a hash of the package's and models'
     source files, which identifies uncommitted code too."""
     digest = hashlib.sha256()
-    root = Path(__file__).resolve().parents[2]
+    root = REPO_DIR
     for path in sorted(list((root / "regrasp_drake").rglob("*.py"))
                        + list((root / "sdf").rglob("*.*"))):
         digest.update(str(path.relative_to(root)).encode())

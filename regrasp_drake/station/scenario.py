@@ -34,6 +34,7 @@ from pydrake.systems.analysis import (
 
 from regrasp_drake.errors import InputError, field_error
 from regrasp_drake.input_files import Tagged, dump_yaml, load_yaml, parse_yaml
+from regrasp_drake.paths import PACKAGE_DIR
 from regrasp_drake.planning.grasp import Target
 from regrasp_drake.station.scenario_checks import validate
 from regrasp_drake.world.robot import (
@@ -42,7 +43,7 @@ from regrasp_drake.world.robot import (
 from regrasp_drake.yaml_schema import check_schema
 
 # The named scenarios (name -> scenario), and the one used by default.
-SCENARIOS_PATH = Path(__file__).resolve().parents[1] / "scenarios.yaml"
+SCENARIOS_PATH = PACKAGE_DIR / "scenarios.yaml"
 DEFAULT_SCENARIO_NAME = "Default"
 
 

@@ -78,7 +78,7 @@ from regrasp_drake.station.mlp_system import MlpSystem, load_weights
 from regrasp_drake.station.scenario import Scenario, scenario_digest
 from regrasp_drake.station.sensors import InfraredSensors, TactileBumper
 from regrasp_drake.world import robot
-from regrasp_drake.world.objects import ObjectSpec, add_object
+from regrasp_drake.world.object_model import ObjectSpec, add_object
 
 _IR_FRAMES = [f"ir{i}" for i in range(1, 14)]
 

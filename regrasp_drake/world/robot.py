@@ -10,7 +10,6 @@ scenario's default `directives`). See `sdf/README.md` for sources and choices.
 import functools
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 from pydrake.common.yaml import yaml_dump_typed
@@ -26,7 +25,8 @@ from pydrake.multibody.parsing import (
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import ModelInstanceIndex
 
-SDF_DIR = Path(__file__).resolve().parents[2] / "sdf"
+from regrasp_drake.paths import SDF_DIR
+
 PACKAGE_NAME = "regrasp_drake"
 PUMA_SDF = SDF_DIR / "puma560.sdf"
 HAND_SDF = SDF_DIR / "hand.sdf"
