@@ -58,7 +58,7 @@ def release_state(scenario, obj, logs) -> dict:
     from pydrake.math import RotationMatrix
 
     from regrasp_drake.station import throw
-    t_free = scenario.throw.settle_s + throw.end_s(scenario.throw)
+    t_free = throw.free_time_s(scenario)
     k = int(np.searchsorted(logs.t, t_free))
     x = logs.object_state[:, k]
     R_WO = RotationMatrix(Quaternion(x[:4] / np.linalg.norm(x[:4]))).matrix()

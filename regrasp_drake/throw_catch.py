@@ -83,7 +83,7 @@ def seen_flight(scenario: Scenario, obj: ObjectSpec, result: EpisodeResult):
     ends early (first-throw mode replans from it when its catch fails)."""
     logs = result.logs
     t, states = logs.t, logs.object_state
-    t_free = scenario.throw.settle_s + throw.end_s(scenario.throw)
+    t_free = throw.free_time_s(scenario)
     g = np.array([0.0, 0.0, -scenario.gravity_m_per_s2])
     v_cm = []
     for k in range(states.shape[1]):
@@ -162,8 +162,7 @@ def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     c = scenario.catch
     target = target_of(scenario)
     grasp.check_reachable(target, obj)
-    t_ready = (scenario.throw.settle_s + throw.end_s(scenario.throw)
-               + c.move_to_grasp_s)
+    t_ready = throw.free_time_s(scenario) + c.move_to_grasp_s
     toss = throw.is_toss(scenario.throw)
     q_start, v_start, a_start = throw.end_state(scenario.throw, ik)
     q_seed = throw.grasp_ik_seed(scenario, ik)

@@ -63,7 +63,6 @@ import torch
 from regrasp_drake import grid, numerics
 from regrasp_drake.errors import InputError, field_error, quote
 from regrasp_drake.input_files import load_json, parse_yaml, read_text
-from regrasp_drake.learning.flight_predictor import free_time_s
 from regrasp_drake.learning.search import load_prior_maps
 from regrasp_drake.parameter_space import (
     H_CATCH_VALUES,
@@ -75,6 +74,7 @@ from regrasp_drake.paths import REPO_DIR, SDF_DIR
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.progress import bar as progress_bar
 from regrasp_drake.station.scenario import load_scenario, scenario_yaml
+from regrasp_drake.station.throw import free_time_s
 from regrasp_drake.throw_catch import plan_catches, watch
 from regrasp_drake.world.objects import (
     CATALOGUE_PATH,

@@ -64,6 +64,7 @@ from regrasp_drake.station.palm_toss import (
     separation_s,
 )
 from regrasp_drake.station.station import start_poses
+from regrasp_drake.station.throw import free_time_s
 from regrasp_drake.throw_catch import plan_catch, watch, with_release
 from regrasp_drake.world.objects import load_catalogue
 
@@ -75,11 +76,6 @@ RESIDUALS = {"p_Cm_m": (slice(0, 3), 0.1),
              "v_Cm_m_per_s": (slice(3, 6), 1.0),
              "rotation_W_rad": (slice(6, 9), 0.5),
              "w_W_rad_per_s": (slice(9, 12), 5.0)}
-
-
-def free_time_s(scenario) -> float:
-    """The moment the predicted state is for: the end of the throw, [s]."""
-    return scenario.throw.settle_s + throw.end_s(scenario.throw)
 
 
 def _toss_design(scenario) -> TossDesign:

@@ -163,8 +163,7 @@ def observe(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     except InputError as e:
         plan, error = None, str(e)
     c = scenario.catch
-    t_ready = (scenario.throw.settle_s + throw.end_s(scenario.throw)
-               + c.move_to_grasp_s)
+    t_ready = throw.free_time_s(scenario) + c.move_to_grasp_s
     q_end = throw.grasp_ik_seed(scenario, ik)
     points = catch_moments(watched.logs.t, watched.logs.object_state, obj,
                            height_m=c.catch_height_m, band_m=c.height_band_m,

@@ -235,7 +235,7 @@ def release_time(scenario: Scenario) -> float:
     free from here (the flight predictor predicts its state at this moment
     too)."""
     period = scenario.sensors.period_s
-    t = scenario.throw.settle_s + throw.end_s(scenario.throw)
+    t = throw.free_time_s(scenario)
     return math.ceil(t / period - 1e-9) * period
 
 

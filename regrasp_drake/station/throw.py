@@ -39,6 +39,12 @@ def end_s(throw) -> float:
     return throw.knot_times_s[-1]
 
 
+def free_time_s(scenario) -> float:
+    """end_s in an episode's time (the settling first): when the object is
+    in free flight and the move toward the grasp pose takes over, [s]."""
+    return scenario.throw.settle_s + end_s(scenario.throw)
+
+
 def end_state(throw, ik) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The arm's joint angles, velocities and accelerations at end_s, [rad,
     rad/s, rad/s²] (the finger throw ends at rest)."""
