@@ -134,7 +134,7 @@ def _write_json(path, data) -> None:
 
 def _cmd_throw(args) -> int:
     scenario, obj, _, _ = _scenario_and_object(args)  # before heavy imports
-    from regrasp_drake.learning.learning_phase import observe
+    from regrasp_drake.learning.observation import observe
     from regrasp_drake.planning.ik import ArmIk
     observation = observe(scenario, obj, ArmIk(scenario.directives))
     if args.plot:

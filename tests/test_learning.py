@@ -338,7 +338,7 @@ class UnreachableLoweringTest(unittest.TestCase):
                               if self.rows[c]["outcome"] == "caught"), 81)
 
     def test_throw_reports_the_deepest_lowering(self):
-        from regrasp_drake.learning.learning_phase import observe
+        from regrasp_drake.learning.observation import observe
         summary = observe(self.scenario, self.obj, self.ik).as_dict()
         self.assertEqual(summary["plan"]["deepest_reachable_h_down"], -0.03)
 

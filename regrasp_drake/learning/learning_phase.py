@@ -60,7 +60,6 @@ plans its pose from its own release (the same pose without release noise).
 Applying: one throw with the stored grasp pose and parameters.
 """
 
-import dataclasses as dc
 import sys
 import time
 
@@ -72,6 +71,11 @@ from regrasp_drake import __version__
 from regrasp_drake.errors import InputError, field_error
 from regrasp_drake.grid import ending
 from regrasp_drake.learning import library as lib
+from regrasp_drake.learning.learning_result import (
+    Attempt,
+    LearningResult,
+    NoCatchPoint,
+)
 from regrasp_drake.learning.search import (
     SEARCHES,
     Search,
@@ -79,20 +83,16 @@ from regrasp_drake.learning.search import (
     object_prior,
 )
 from regrasp_drake.parameter_space import (
-    H_CATCH_RANGE,
     H_DOWN_VALUES,
-    HELD_OUTCOMES,
     cell_parameters,
     nearest_cell,
 )
 from regrasp_drake.planning import grasp
 from regrasp_drake.planning.catch_plan import (
     CatchPoint,
-    catch_moments,
 )
 from regrasp_drake.planning.free_flight import flight_from_release
 from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.station import throw
 from regrasp_drake.station.episode import (
     EpisodeResult,
     release_time,
@@ -104,7 +104,6 @@ from regrasp_drake.station.scenario import Scenario, scenario_digest, target_of
 from regrasp_drake.throw_catch import (
     CatchPlan,
     ReleaseCorrection,
-    catch_palm_poses,
     plan_catch,
     plan_watched,
     reachable_h_down,
@@ -114,77 +113,6 @@ from regrasp_drake.throw_catch import (
     watch,
 )
 from regrasp_drake.world.objects import ObjectSpec
-
-
-# ---- the observation throw and its offline stage (`regrasp-drake throw`) --
-@dc.dataclass
-class Observation:
-    watched: EpisodeResult
-    points: list[CatchPoint]  # every catch point, best first
-    reach: list[list[dict]]   # per point, per side: reachable, reason
-    plan: CatchPlan | None    # None when no point is reachable
-    plan_error: str           # why there is no plan ("" when there is one)
-    # Per h_down of the grid, whether the arm reaches the lowered pose under
-    # the plan (`throw_catch.reachable_h_down`); None without a plan.
-    lowering_reach: list[bool] | None = None
-
-    def as_dict(self) -> dict:
-        used = self.plan.catch_point.t_s if self.plan else None
-        return {
-            "object": self.watched.object,
-            "watch": _episode_dict(self.watched),
-            "catch_points": [p.as_dict() | {"used": p.t_s == used, "sides": r}
-                             for p, r in zip(self.points, self.reach)],
-            "plan": None if self.plan is None else _plan_dict(self.plan) | {
-                "deepest_reachable_h_down": float(
-                    H_DOWN_VALUES[self.lowering_reach.index(True)])},
-            "plan_error": self.plan_error,
-        }
-
-
-def observe(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
-            meshcat=None, shown: int = 10) -> Observation:
-    """The watching throw and the offline stage, with the best catch moments.
-
-    The catch point used by default is the first moment, in the order of
-    `catch_plan.catch_moments`, that the arm reaches in time within its
-    torque limits (the same choice as `plan_catch`): only moments after the
-    hand can be in place; first those where the object's axis is within
-    `catch.tilt_tolerance` of horizontal (the paper catches "where the object
-    is horizontal, otherwise the probability of catching is reduced"; the
-    palm tilts to lie parallel to the axis), then those where it lands flat,
-    then those leaving at least 0.40 m of fall after the hand is ready (so
-    that every h_catch of the grid can trigger), then the nearest to the
-    preferred height `catch.catch_height_m`. The first `shown` moments are
-    listed with, per side, whether the arm reaches them and why not."""
-    watched = watch(scenario, obj, ik, meshcat=meshcat)
-    try:
-        plan, error = plan_catch(scenario, obj, ik, watched), ""
-    except InputError as e:
-        plan, error = None, str(e)
-    c = scenario.catch
-    t_ready = throw.free_time_s(scenario) + c.move_to_grasp_s
-    q_end = throw.grasp_ik_seed(scenario, ik)
-    points = catch_moments(watched.logs.t, watched.logs.object_state, obj,
-                           height_m=c.catch_height_m, band_m=c.height_band_m,
-                           ready_s=t_ready, fall_m=H_CATCH_RANGE[1],
-                           tilt_tolerance=c.tilt_tolerance,
-                           gravity_m_per_s2=scenario.gravity_m_per_s2,
-                           exact_crossings=throw.is_toss(scenario.throw)
-                           )[:shown]
-    if plan is not None and all(p.t_s != plan.catch_point.t_s for p in points):
-        points.append(plan.catch_point)  # chosen further down the order
-    reach = []
-    for point in points:
-        sides = []
-        for side, X_WG in zip(("paper", "mirrored"),
-                              catch_palm_poses(scenario, point, obj)):
-            result = ik.solve(X_WG, q_end)
-            sides.append({"side": side, "reachable": result.success,
-                          "reason": result.reason()})
-        reach.append(sides)
-    return Observation(watched, points, reach, plan, error, None if plan is None
-                       else reachable_h_down(ik, plan, H_DOWN_VALUES))
 
 
 # ---- the network's prediction -------------------------------------------
@@ -220,133 +148,6 @@ def feasible_start(cell, ik: ArmIk, plan: CatchPlan):
 # How often a learning phase moves the palm along the axis after a throw held
 # at another offset than the target's (_Phase.correct_offset).
 MAX_OFFSET_CORRECTIONS = 3
-
-
-class NoCatchPoint(InputError):
-    """The watching throw shows no reachable catch point: the learning phase
-    cannot go on. Carries the throws made (the watch) and their time."""
-
-    def __init__(self, message: str, *, throws: int, sim_time_s: float,
-                 wall_s: float):
-        super().__init__(message)
-        self.throws = throws
-        self.sim_time_s = sim_time_s
-        self.wall_s = wall_s
-
-
-@dc.dataclass
-class Attempt:
-    throw: int          # the throw's number in the run (the watch is 1)
-    cell: tuple         # (i_catch, i_down)
-    h_catch: float      # [m]
-    h_down: float       # [m]
-    # caught (in the target grasp) | wrong_grasp | dropped | timeout |
-    # landed | failed
-    outcome: str
-    sim_time_s: float   # simulated time of the throw, [s]
-    wall_s: float       # wall time of the throw, [s]
-    message: str        # a failed episode's reason
-    # How a throw that did not catch ended (grid.ending: in_fingers, on_arm,
-    # loose, below_palm, near_ground, failed, other), None when caught.
-    ending: str | None = None
-    # How the throw corrected its watched plan at its release
-    # (throw_catch.ReleaseCorrection.as_dict), when its release differed.
-    release_correction: dict | None = None
-    # The grasp it ended in (planning/grasp.Grasp.as_dict; None when not
-    # held) and its error against the target.
-    achieved_grasp: dict | None = None
-    grasp_error: dict | None = None
-
-    @property
-    def caught(self) -> bool:
-        """Held at the end, in whatever grasp."""
-        return self.outcome in HELD_OUTCOMES
-
-    def as_dict(self) -> dict:
-        d = {"throw": self.throw, "cell": list(self.cell),
-             "h_catch": self.h_catch, "h_down": self.h_down,
-             "outcome": self.outcome, "success": self.outcome == "caught",
-             "caught": self.caught, "achieved_grasp": self.achieved_grasp,
-             "grasp_error": self.grasp_error,
-             "sim_time_s": round(self.sim_time_s, 4),
-             "wall_s": round(self.wall_s, 3), "message": self.message,
-             "ending": self.ending}
-        if self.release_correction is not None:
-            d["release_correction"] = self.release_correction
-        return d
-
-
-@dc.dataclass
-class LearningResult:
-    object: str
-    success: bool       # held in the target grasp on the last throw
-    stopped: str        # caught | exhausted | max_throws | no_catch_point
-    throws: int         # every throw, the watching throw included
-    sim_time_s: float   # simulated time of every throw, [s]
-    wall_s: float       # wall time of the whole phase, [s]
-    watched: EpisodeResult | None  # the watching throw, if one was made
-    plan: CatchPlan
-    features: list      # the network's inputs (FEATURE_NAMES order)
-    raw_prediction: list    # the network's output (h_catch, h_down), [m]
-    prediction: tuple       # clamped to the parameter space, [m]
-    start_cell: tuple
-    attempts: list[Attempt]
-    learned: lib.LearnedEntry | None
-    first_throw: bool = False  # planned from the predicted flight first
-    # First-throw mode: when and from what the catch was planned again
-    # (after_throw, from: "seen flight" | "watching throw"), or None.
-    replanned: dict | None = None
-    first_plan: CatchPlan | None = None  # the predicted flight's, if replaced
-    at_release: bool = False  # each throw planned when it released the object
-    search: str = "wavefront"  # the search's rule: one of search.SEARCHES
-    target: dict | None = None  # the scenario's (planning/grasp.Target)
-    start_grasp: dict | None = None  # how the object lay before the throw
-
-    @property
-    def caught(self) -> bool:
-        """The last throw held the object, in whatever grasp."""
-        return bool(self.attempts) and self.attempts[-1].caught
-
-    @property
-    def achieved_grasp(self) -> dict | None:
-        """The grasp the last throw ended in (None: not held)."""
-        return self.attempts[-1].achieved_grasp if self.attempts else None
-
-    @property
-    def search_attempts(self) -> list[Attempt]:
-        """The attempts at the final plan (its search from start_cell)."""
-        after = (self.replanned or {}).get("after_throw", 0)
-        return [a for a in self.attempts if a.throw > after]
-
-    def as_dict(self) -> dict:
-        return {
-            "object": self.object, "target": self.target,
-            "success": self.success, "caught": self.caught,
-            "start_grasp": self.start_grasp,
-            "achieved_grasp": self.achieved_grasp,
-            "grasp_error": (self.attempts[-1].grasp_error if self.attempts
-                            else None),
-            "stopped": self.stopped, "throws": self.throws,
-            "sim_time_s": round(self.sim_time_s, 4),
-            "wall_s": round(self.wall_s, 3),
-            "watch": (None if self.watched is None
-                      else _episode_dict(self.watched)),
-            "first_throw": self.first_throw,
-            "at_release": self.at_release,
-            "search": self.search,
-            "replanned": self.replanned,
-            "first_plan": (None if self.first_plan is None
-                           else _plan_dict(self.first_plan)),
-            "plan": _plan_dict(self.plan),
-            "features": dict(zip(FEATURE_NAMES, self.features)),
-            "prediction": {"raw": [round(x, 5) for x in self.raw_prediction],
-                           "clamped": [round(x, 5) for x in self.prediction],
-                           "start_cell": list(self.start_cell),
-                           "start_parameters": list(
-                               cell_parameters(self.start_cell))},
-            "attempts": [a.as_dict() for a in self.attempts],
-            "learned": None if self.learned is None else self.learned.as_dict(),
-        }
 
 
 def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
@@ -781,14 +582,3 @@ def apply_learned(scenario: Scenario, obj: ObjectSpec,
                        X_WG=entry.X_WG,
                        catch_parameters=(entry.h_catch, entry.h_down),
                        meshcat=meshcat)
-
-
-def _episode_dict(result: EpisodeResult) -> dict:
-    return {"outcome": result.outcome,
-            "sim_time_s": round(result.sim_time_s, 4),
-            "wall_s": round(result.wall_s, 3), "message": result.message}
-
-
-def _plan_dict(plan: CatchPlan) -> dict:
-    return plan.as_dict() | {
-        "R_WG": plan.X_WG.rotation().matrix().round(6).tolist()}
