@@ -58,6 +58,11 @@ search start from throw 1's plan; a later throw keeps the search's cell and
 plans its pose from its own release (the same pose without release noise).
 
 Applying: one throw with the stored grasp pose and parameters.
+
+Over 500 lines because the learning phase is one procedure (`_Phase`: watch,
+plan, predict, catch, correct, replan, search) whose steps share its state;
+what it reports is in learning_result.py, the observation throw in
+observation.py.
 """
 
 import sys
