@@ -55,7 +55,9 @@ from regrasp_drake.station.scenario import catch_phase_scenario, load_scenario
 from regrasp_drake.station.station import (
     build_episode_diagram,
     continue_with,
+    hand_idle_until_handover,
     initialize,
+    lock_hand,
 )
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world.objects import resolve_object
@@ -229,6 +231,8 @@ def replayed_physics_wall_s(obj, segment: Segment, k_start=None, *,
     root.SetTime(k_start * dt)
     context = plant.GetMyMutableContextFromRoot(root)
     plant.SetPositionsAndVelocities(context, segment.x[k_start - k0])
+    if hand_idle_until_handover(segment.scenario):  # as the episode's throw
+        lock_hand(plant, context, instances.hand)
     simulator.Initialize()
     t0 = time.perf_counter()
     simulator.AdvanceTo(k_end * dt)
