@@ -1,28 +1,36 @@
-"""Benchmark of one catch episode: wall time, real-time factor, where the time goes.
+"""Benchmark of one catch episode: real-time factors, and where the time goes.
 
-    .venv/bin/python benchmarks/episode_benchmark.py [--object table1-row2] [--runs 5]
+    .venv/bin/python benchmarks/episode_benchmark.py [--object table1-row2]
+        [--h-catch 0.3] [--h-down -0.07] [--runs 5]
         [--json benchmarks/episode_benchmark.json]
         [--png benchmarks/episode_benchmark.png]
 
-Prints the figures and writes them as JSON, and a PNG of the split (physics
-alone, our Python callbacks, the rest). Not a test: machines are noisy;
-compare figures from one run. Our Python callbacks are timed from inside
-(CallbackTimer). For comparison, the same run times the episode's physics
-alone: the same plant (arm, hand, object, ground; same time step and
-contact) replayed with the inputs the episode gave it at every step, with no
-controller and no Python system. It ends in the episode's final state bit
-for bit (checked: `identical_final_state`), so it is the same physics,
-contact for contact: what no change to the systems around the plant can go
-below. Both are measured over the whole episode and from the cell's fork
-(the trigger: what each forked cell of a success map simulates). The
-episode runs at two plant steps (the throw's to the release time, the
-catch's, `catch_time_step_s`, from there: `plant_steps`), so its physics is
-replayed in two segments, each on the plant of its step. `peak_memory_gib`:
-this process's peak resident set size (an episode's, its replays' and the
-arm's inverse kinematics'). `throw_reused`: the same episode going on from
-its throw simulated before (episode.ThrowCache, what an object's episodes
-after its first do), its wall time and real-time factors, checked equal to
-the episode simulated from the start.
+The episode is the one `regrasp-drake catch --object OBJECT --h-catch H
+--h-down D` runs: watch, plan (`plan_watched`), catch with the release's
+correction. Three figures, each the median of --runs in this one run
+(machines are noisy: compare figures from one run, not across runs):
+`catch_throw_reused`, the catch going on from its throw simulated before
+(episode.ThrowCache: what `catch`, `learn`, `apply` and every map cell
+run), its `sim_time_s` over its `wall_s` as `catch --json` reports them;
+`episode_from_start`, the same episode simulated from the start, no cache;
+and `split`, for each of the two and for a forked map cell, the shares of
+the simulation's wall time taken by the physics alone, our systems and
+Drake's framework (the arm controller, events, caches: the rest).
+
+Our systems' Python callbacks are timed from inside (CallbackTimer). The
+physics alone is the same plant (arm, hand, object, ground; same time step
+and contact) replayed with the inputs the episode gave it at every step,
+with no controller and no Python system. It ends in the episode's final
+state bit for bit (checked: `identical_final_state`), so it is the same
+physics, contact for contact: what no change to the systems around the
+plant can go below. The episode runs at two plant steps (the throw's to
+the release time, the catch's, `catch_time_step_s`, from there:
+`plant_steps`), so its physics is replayed in two segments, each on the
+plant of its step; the catch with its throw reused simulates the second.
+The forked cell's part runs from the trigger (the first sample in LOWER,
+less one sample: what each forked cell of a success map simulates).
+`peak_memory_gib`: this process's peak resident set size. Also printed as
+JSON and drawn as a PNG of the split.
 """
 
 # regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
@@ -51,13 +59,23 @@ from regrasp_drake.station.episode import (
     release_time,
     run_episode,
 )
-from regrasp_drake.station.scenario import catch_phase_scenario, load_scenario
+from regrasp_drake.station.scenario import (
+    catch_phase_scenario,
+    check_catch_parameters,
+    load_scenario,
+)
 from regrasp_drake.station.station import (
     build_episode_diagram,
     continue_with,
+    hand_idle_until_handover,
     initialize,
+    lock_hand,
 )
-from regrasp_drake.throw_catch import plan_catch, watch
+from regrasp_drake.throw_catch import (
+    plan_watched,
+    release_correction,
+    watch,
+)
 from regrasp_drake.world.objects import resolve_object
 
 class CallbackTimer:
@@ -229,6 +247,8 @@ def replayed_physics_wall_s(obj, segment: Segment, k_start=None, *,
     root.SetTime(k_start * dt)
     context = plant.GetMyMutableContextFromRoot(root)
     plant.SetPositionsAndVelocities(context, segment.x[k_start - k0])
+    if hand_idle_until_handover(segment.scenario):  # as the episode's throw
+        lock_hand(plant, context, instances.hand)
     simulator.Initialize()
     t0 = time.perf_counter()
     simulator.AdvanceTo(k_end * dt)
@@ -258,40 +278,79 @@ def episode_from_wall_s(scenario, obj, ik, X_WG, params, t_start,
     return time.perf_counter() - t0
 
 
-def throw_reused(scenario, obj, ik, plan, params, runs, fresh,
-                 fresh_wall_s) -> dict:
-    """The same episode going on from its throw simulated before
-    (episode.ThrowCache: what every episode of an object after its first
-    does): median wall time of `runs`, checked equal to the episode
-    simulated from the start (`fresh`; its median wall time
-    `fresh_wall_s`)."""
+def catch_episode(scenario, obj, ik, plan, params):
+    """The catching episode `regrasp-drake catch` runs after its watch:
+    `plan` (plan_watched) and the release's correction, with the throw
+    cache as it is (episode.THROWS)."""
+    return run_episode(scenario, obj, ik=ik, X_WG=plan.X_WG,
+                       catch_parameters=params,
+                       at_release=release_correction(scenario, obj, ik, plan,
+                                                     params))
+
+
+def real_time_factors(results) -> dict:
+    """Median over `results` of sim_time_s / wall_s (as `catch --json`
+    reports both), and the median wall time."""
+    return {"real_time_factor": round(statistics.median(
+                r.sim_time_s / r.wall_s for r in results), 3),
+            "median_wall_s": round(statistics.median(
+                r.wall_s for r in results), 4),
+            "median_build_s": round(statistics.median(
+                r.build_s for r in results), 4)}
+
+
+def throw_reused(scenario, obj, ik, plan, params, runs, fresh) -> tuple:
+    """The catch going on from its throw simulated before, as `regrasp-drake
+    catch` runs it: a watch (episode.ThrowCache keeps its throw), then the
+    catch, which builds its own diagram and goes on from the kept throw;
+    `runs` times (the watches not timed), checked equal to the episode
+    simulated from the start (`fresh`), and once more with our callbacks
+    timed. Returns (report, the timed run's CallbackTimer report, that
+    run's simulation wall s)."""
     THROWS.enabled = True
-    THROWS.clear()
-    watch(scenario, obj, ik)  # simulates the throw, kept from the release
-    results = [run_episode(scenario, obj, ik=ik, X_WG=plan.X_WG,
-                           catch_parameters=params) for _ in range(runs)]
+
+    def catch(timer=None):
+        THROWS.clear()
+        watch(scenario, obj, ik)
+        if timer is not None:
+            timer.reset()
+        return catch_episode(scenario, obj, ik, plan, params)
+
+    results = [catch() for _ in range(runs)]
+    with CallbackTimer() as timer:
+        timed = catch(timer)
     THROWS.enabled = False
-    wall = statistics.median(r.wall_s for r in results)
-    t_release = release_time(scenario)
-    return {
-        "median_wall_s": round(wall, 4),
-        "simulated_from_s": round(t_release, 4),
-        # The episode's simulated time (the throw's included) over the wall
-        # time it took with the throw reused ...
-        "episode_real_time_factor": round(fresh.sim_time_s / wall, 3),
-        # ... and the part simulated in it (from the release) over the same.
-        "simulated_part_real_time_factor": round(
-            (fresh.sim_time_s - t_release) / wall, 3),
-        "speedup_over_fresh": round(fresh_wall_s / wall, 2),
-        "identical_to_fresh": all(
-            r.outcome == fresh.outcome and r.p_WO_final == fresh.p_WO_final
-            for r in results)}
+    report = {"sim_time_s": round(fresh.sim_time_s, 4),
+              "simulated_from_s": round(release_time(scenario), 4)}
+    report |= real_time_factors(results)
+    report["identical_to_from_start"] = all(
+        r.outcome == fresh.outcome and r.p_WO_final == fresh.p_WO_final
+        for r in results + [timed])
+    return report, timer.report(), timed.wall_s - timed.build_s
+
+
+def split(physics_s, wall_s, callbacks, timed_wall_s) -> dict:
+    """Shares of a simulation's wall time: the physics alone (`physics_s`,
+    replayed) of `wall_s` (the median of the untimed runs), our systems
+    (the CallbackTimer report `callbacks`) of `timed_wall_s` (the run they
+    were timed in), Drake's framework the rest."""
+    ours = sum(v["s"] for v in callbacks.values())
+    physics, our_systems = physics_s / wall_s, ours / timed_wall_s
+    return {"wall_s": round(wall_s, 4), "physics_s": round(physics_s, 4),
+            "our_systems_s": round(ours, 4),
+            "timed_run_wall_s": round(timed_wall_s, 4),
+            "physics": round(physics, 3),
+            "our_systems": round(our_systems, 3),
+            "framework": round(1.0 - physics - our_systems, 3),
+            "our_systems_callbacks": callbacks}
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--object", default="table1-row2")
+    parser.add_argument("--h-catch", type=float, default=0.3)
+    parser.add_argument("--h-down", type=float, default=-0.07)
     parser.add_argument("--runs", type=int, default=5)
     parser.add_argument("--json", type=Path,
                         default=Path("benchmarks/episode_benchmark.json"))
@@ -301,6 +360,8 @@ def main(argv=None) -> int:
     try:
         if args.runs < 1:
             raise InputError(f"--runs {args.runs}: expected >= 1")
+        check_catch_parameters(args.h_catch, args.h_down,
+                               names=("--h-catch", "--h-down"))
         try:
             obj = resolve_object(name=args.object)
         except InputError as e:
@@ -309,42 +370,36 @@ def main(argv=None) -> int:
         print(f"episode_benchmark: error: {e}", file=sys.stderr)
         return 2
     torch.set_num_threads(1)
-    # Every episode simulated from the start (the throw cache is measured
-    # on its own below).
-    THROWS.enabled = False
     scenario = load_scenario()
+    params = (args.h_catch, args.h_down)
+    # The episode from the start: no throw cache (measured on its own below).
+    THROWS.enabled = False
     ik = ArmIk(scenario.directives)
-    plan = plan_catch(scenario, obj, ik, watch(scenario, obj, ik))
-    params = (scenario.catch.h_catch_m, scenario.catch.h_down_m)
-    results = []
-    for _ in range(args.runs):
-        results.append(run_episode(scenario, obj, ik=ik, X_WG=plan.X_WG,
-                                   catch_parameters=params))
-    walls = [r.wall_s for r in results]
-    builds = [r.build_s for r in results]
+    plan = plan_watched(scenario, obj, ik, watch(scenario, obj, ik))
+    results = [catch_episode(scenario, obj, ik, plan, params)
+               for _ in range(args.runs)]
     sim = results[0].sim_time_s
-    # One more run with our Python callbacks timed.
-    with CallbackTimer() as timer:
-        timed = run_episode(scenario, obj, ik=ik, X_WG=plan.X_WG,
-                            catch_parameters=params)
-    python = timer.report()
+    with CallbackTimer() as timer:  # one more run, our callbacks timed
+        timed = catch_episode(scenario, obj, ik, plan, params)
+    callbacks = timer.report()
     report = {
-        "object": obj.name, "outcome": results[0].outcome,
-        "runs": args.runs, "sim_time_s": round(sim, 4),
-        "median_wall_s": round(statistics.median(walls), 4),
-        "median_build_s": round(statistics.median(builds), 4),
-        "real_time_factor": round(sim / statistics.median(walls), 3),
-        "simulation_only_real_time_factor": round(
-            sim / (statistics.median(walls) - statistics.median(builds)), 3),
-        "timed_callbacks_run": {
-            "wall_s": round(timed.wall_s - timed.build_s, 4),
-            "python_callbacks": python,
-            "python_s": round(sum(v["s"] for v in python.values()), 4)},
+        "object": obj.name, "h_catch": params[0], "h_down": params[1],
+        "outcome": results[0].outcome, "runs": args.runs,
+        "sim_time_s": round(sim, 4),
         "outcomes_identical": len({r.outcome for r in results + [timed]}) == 1,
     }
+    report["episode_from_start"] = real_time_factors(results)
+    reused, reused_callbacks, reused_timed_wall = throw_reused(
+        scenario, obj, ik, plan, params, args.runs, results[0])
+    report["catch_throw_reused"] = reused
+    report["catch_throw_reused_over_from_start"] = round(
+        reused["real_time_factor"]
+        / report["episode_from_start"]["real_time_factor"], 3)
+
     # The physics alone, replayed (see replayed_physics_wall_s): over the
-    # whole episode, and from the trigger (the first sample in LOWER, less
-    # one sample: where a success map forks this cell) to the end.
+    # whole episode, over the catch from the release (what the catch with
+    # its throw reused simulates), and from the trigger (the first sample
+    # in LOWER, less one sample: where a success map forks this cell).
     logs = results[0].logs
     lower = [t for t, p in zip(logs.t, logs.phase) if p >= Phase.LOWER]
     if not lower:
@@ -361,48 +416,41 @@ def main(argv=None) -> int:
         print(f"episode_benchmark: error: the fork (t = {t_fork} s) comes "
               "before the handover to the catch's step", file=sys.stderr)
         return 2
-    replay, replay_tail, tail = [], [], []
+    replay, replay_catch, replay_tail, tail = [], [], [], []
     for _ in range(args.runs):
         parts = [replayed_physics_wall_s(obj, segment)
                  for segment in segments]
         replay.append((sum(w for w, _ in parts),
                        all(same for _, same in parts)))
+        replay_catch.append(parts[-1][0])
         replay_tail.append(replayed_physics_wall_s(obj, last, k_fork))
         tail.append(episode_from_wall_s(
             scenario, obj, ik, plan.X_WG, params, t_fork))
     with CallbackTimer() as timer:
         tail_timed = episode_from_wall_s(scenario, obj, ik, plan.X_WG, params,
                                          t_fork, timer)
-    python_tail = timer.report()
-    episode_sim_wall = statistics.median(walls) - statistics.median(builds)
-    physics = statistics.median(w for w, _ in replay)
-    physics_tail = statistics.median(w for w, _ in replay_tail)
+    median = statistics.median
     report["plant_steps"] = [
         {"time_step_s": segment.dt,
          "from_s": round(segment.k0 * segment.dt, 6),
          "steps": len(segment.u_arm)} for segment in segments]
-    report["physics_replayed"] = {
-        "identical_final_state": (
-            p_WO_end == results[0].p_WO_final
-            and all(same for _, same in replay + replay_tail)),
-        "whole_episode": {
-            "physics_wall_s": round(physics, 4),
-            "physics_real_time_factor": round(sim / physics, 3),
-            "physics_share_of_episode": round(physics / episode_sim_wall, 3)},
-        "from_fork": {
-            "fork_time_s": t_fork, "sim_time_s": round(sim - t_fork, 4),
-            "episode_wall_s": round(statistics.median(tail), 4),
-            "physics_wall_s": round(physics_tail, 4),
-            "physics_share": round(physics_tail / statistics.median(tail), 3),
-            "timed_callbacks_run": {
-                "wall_s": round(tail_timed, 4),
-                "python_callbacks": python_tail,
-                "python_s": round(sum(v["s"] for v in python_tail.values()),
-                                  4)}},
+    report["identical_final_state"] = (
+        p_WO_end == results[0].p_WO_final
+        and all(same for _, same in replay + replay_tail))
+    from_start = report["episode_from_start"]
+    report["split"] = {
+        "episode_from_start": split(
+            median(w for w, _ in replay),
+            from_start["median_wall_s"] - from_start["median_build_s"],
+            callbacks, timed.wall_s - timed.build_s),
+        "catch_throw_reused": split(
+            median(replay_catch),
+            reused["median_wall_s"] - reused["median_build_s"],
+            reused_callbacks, reused_timed_wall),
+        "forked_cell": split(median(w for w, _ in replay_tail), median(tail),
+                             timer.report(), tail_timed)
+        | {"from_s": t_fork, "sim_time_s": round(sim - t_fork, 4)},
     }
-    report["throw_reused"] = throw_reused(
-        scenario, obj, ik, plan, params, args.runs, results[0],
-        statistics.median(walls))
     report["peak_memory_gib"] = round(
         resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20, 3)
     print(json.dumps(report, indent=1))
@@ -413,23 +461,19 @@ def main(argv=None) -> int:
 
 
 def shares(report) -> dict:
-    """Per part (whole episode, forked cell): the shares of its simulation's
-    wall time taken by the physics alone, our Python callbacks and the rest
-    (the arm controller, Drake's events and caches)."""
-    replayed = report["physics_replayed"]
-    whole_wall = report["median_wall_s"] - report["median_build_s"]
-    parts = {
-        f"whole episode ({report['sim_time_s']:g} s simulated)": (
-            replayed["whole_episode"]["physics_wall_s"] / whole_wall,
-            report["timed_callbacks_run"]["python_s"]
-            / report["timed_callbacks_run"]["wall_s"]),
-        f"forked cell ({replayed['from_fork']['sim_time_s']:g} s simulated)": (
-            replayed["from_fork"]["physics_share"],
-            replayed["from_fork"]["timed_callbacks_run"]["python_s"]
-            / replayed["from_fork"]["timed_callbacks_run"]["wall_s"]),
-    }
-    return {name: {"physics": p, "python": q, "rest": 1.0 - p - q}
-            for name, (p, q) in parts.items()}
+    """Per part (the episode from the start, the catch with its throw
+    reused, a forked cell): the shares of its simulation's wall time taken
+    by the physics alone, our systems and the framework (report["split"])."""
+    sim = report["sim_time_s"]
+    reused = report["catch_throw_reused"]["simulated_from_s"]
+    names = {"episode_from_start": f"episode from the start ({sim:g} s)",
+             "catch_throw_reused":
+                 f"catch, throw reused ({sim - reused:g} s simulated)",
+             "forked_cell": "forked map cell "
+                            f"({report['split']['forked_cell']['sim_time_s']:g} s)"}
+    return {names[k]: {key: v[key] for key in ("physics", "our_systems",
+                                                "framework")}
+            for k, v in report["split"].items()}
 
 
 def plot_shares(report, path: Path) -> None:
@@ -439,13 +483,14 @@ def plot_shares(report, path: Path) -> None:
     import matplotlib.pyplot as plt
     parts = shares(report)
     fig, ax = plt.subplots(figsize=(8, 3.2))
-    colours = {"physics": "#4c72b0", "python": "#dd8452", "rest": "#bbbbbb"}
+    colours = {"physics": "#4c72b0", "our_systems": "#dd8452",
+               "framework": "#bbbbbb"}
     labels = {"physics": "physics alone (replayed bit for bit)",
-              "python": "our Python callbacks",
-              "rest": "the rest (arm controller, Drake's events, caches)"}
+              "our_systems": "our systems (Python callbacks)",
+              "framework": "framework (arm controller, Drake's events, caches)"}
     for i, (name, share) in enumerate(parts.items()):
         left = 0.0
-        for key in ("physics", "python", "rest"):
+        for key in ("physics", "our_systems", "framework"):
             ax.barh(i, share[key], left=left, color=colours[key],
                     label=labels[key] if i == 0 else None)
             ax.text(left + share[key] / 2, i, f"{100 * share[key]:.0f} %",
@@ -456,8 +501,11 @@ def plot_shares(report, path: Path) -> None:
     ax.invert_yaxis()
     ax.set_xlim(0, 1)
     ax.set_xlabel("share of the simulation's wall time")
-    ax.set_title(f"{report['object']}: where an episode's time goes "
-                 f"({report['real_time_factor']:g}x real time)", fontsize=9)
+    ax.set_title(
+        f"{report['object']}: where an episode's time goes (from the start "
+        f"{report['episode_from_start']['real_time_factor']:g}x real time, "
+        f"throw reused {report['catch_throw_reused']['real_time_factor']:g}x)",
+        fontsize=9)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.3),
               ncol=2, frameon=False)
     fig.tight_layout()

@@ -104,6 +104,8 @@ class BadInputTest(RefusalAssertions, unittest.TestCase):
     def test_refusals(self):
         self.assertRefused(["--runs", "0"], "--runs 0", "expected >= 1")
         self.assertRefused(["--object", "nope"], "--object nope", "expected")
+        self.assertRefused(["--h-catch", "0.9"], "--h-catch", "0.9",
+                           "expected")
 
 
 if __name__ == "__main__":

@@ -31,6 +31,7 @@ import numpy as np
 from regrasp_drake.errors import check_interrupt
 from regrasp_drake.station.catch_state_machine import Phase
 from regrasp_drake.station.episode import (
+    THROWS,
     advance_to_outcome,
     hand_over,
     judge_grasp,
@@ -62,15 +63,23 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
     t0 = time.perf_counter()
     start = start_grasp(scenario, obj)
     parameters = [(float(h), float(d)) for h, d in parameters]
-    episode = build_episode_diagram(scenario, obj, ik=ik, X_WG=X_WG,
-                                    catch_parameters=(0.0, 0.0))
-    simulator = initialize(episode, scenario)
-    handover = hand_over(
-        simulator, episode, scenario,
-        lambda later: build_episode_diagram(later, obj, ik=ik, X_WG=X_WG,
-                                            catch_parameters=(0.0, 0.0)))
+
+    def rebuild(later):
+        return build_episode_diagram(later, obj, ik=ik, X_WG=X_WG,
+                                     catch_parameters=(0.0, 0.0))
+
+    # The throw to the release, simulated before by the watching throw
+    # the plan came from (episode.ThrowCache), or simulated here and kept.
+    key = THROWS.key(scenario, obj, 1, (0.0, 0.0), None)
+    handover = THROWS.resume(key, rebuild, X_WG, (0.0, 0.0), ik)
+    if handover is None:
+        episode = build_episode_diagram(scenario, obj, ik=ik, X_WG=X_WG,
+                                        catch_parameters=(0.0, 0.0))
+        handover = hand_over(initialize(episode, scenario), episode,
+                             scenario, rebuild)
+        THROWS.keep(key, handover)
+    simulator, episode, scenario = handover.now
     if handover.before is not None:
-        simulator, episode, scenario = handover.now
         machine = episode.controller.state_machine
         phase = machine.GetOutputPort("phase").Eval(
             machine.GetMyContextFromRoot(simulator.get_context()))[0]

@@ -75,7 +75,11 @@ from regrasp_drake.station.catch_state_machine import (
 )
 from regrasp_drake.station.grasp_monitor import GraspMonitor
 from regrasp_drake.station.mlp_system import MlpSystem, load_weights
-from regrasp_drake.station.scenario import Scenario, scenario_digest
+from regrasp_drake.station.scenario import (
+    Scenario,
+    catch_phase_scenario,
+    scenario_digest,
+)
 from regrasp_drake.station.sensors import InfraredSensors, TactileBumper
 from regrasp_drake.world import robot
 from regrasp_drake.world.object_model import ObjectSpec, add_object
@@ -691,8 +695,32 @@ def initialize(episode: EpisodeDiagram, scenario: Scenario) -> Simulator:
     plant.SetPositions(plant_context, station.hand, robot.HAND_OPEN)
     plant.SetFreeBodyPose(plant_context, station.object_body,
                           station.X_WO_initial)
+    if hand_idle_until_handover(scenario):
+        lock_hand(plant, plant_context, station.hand)
     simulator.Initialize()
     return simulator
+
+
+def hand_idle_until_handover(scenario: Scenario) -> bool:
+    """Whether the fingers hold still, open, from the start to the release
+    time's handover to the catch's plant step (episode.hand_over): the palm
+    toss without release noise (a noisy throw may end, and the fingers
+    start to pre-shape, before it), handed over at the release time
+    (catch_time_step_s). Their joints are then locked through the throw
+    (`lock_hand`): no finger touches the tossed object, and SAP leaves
+    locked joints out of its solve. The catch's diagram, which the
+    handover builds, starts with them free (continue_with copies the
+    plant's state, not its parameters, where Drake keeps the locks)."""
+    return (throw.is_toss(scenario.throw)
+            and ThrowPerturbation.draw(scenario.throw.noise, 1).is_zero()
+            and catch_phase_scenario(scenario) is not None)
+
+
+def lock_hand(plant: MultibodyPlant, plant_context, hand) -> None:
+    """Locks every joint of the hand in plant_context (Joint::Lock: its
+    velocity zeroed, the joint held where it is)."""
+    for index in plant.GetJointIndices(hand):
+        plant.get_joint(index).Lock(plant_context)
 
 
 def continue_with(simulator: Simulator, episode: EpisodeDiagram,
