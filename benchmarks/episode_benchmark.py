@@ -220,7 +220,7 @@ def replayed_physics_wall_s(obj, segment: Segment, k_start=None, *,
     from pydrake.systems.primitives import TrajectorySource
     from pydrake.trajectories import PiecewisePolynomial
 
-    from regrasp_drake.station.station import add_world
+    from regrasp_drake.station.plant import add_world
     dt, k0 = segment.dt, segment.k0
     k_start = k0 if k_start is None else k_start
     steps = len(segment.u_arm)

@@ -111,7 +111,7 @@ class ContactGeometryTest(unittest.TestCase):
     def _world(self, palm, boxes):
         from pydrake.systems.framework import DiagramBuilder
 
-        from regrasp_drake.station.station import add_world
+        from regrasp_drake.station.plant import add_world
         s = Scenario()
         s.contact.palm, s.contact.object_boxes = palm, boxes
         plant, scene_graph, instances, body, ids = add_world(

@@ -7,7 +7,7 @@ What it predicts: the object's state at the end of the throw
 mass properties and the scenario's throw.
 
 The model (rigid ride): the object lies still on the open palm at the
-toss's start pose (its rest pose, station.start_poses: the object's
+toss's start pose (its rest pose, station.start_pose.start_poses: the object's
 static equilibrium on the palm, found by the same relaxation every
 episode starts from; the throw's initial condition, which on a robot is
 the object's pose in the open hand before the throw, seen, not
@@ -63,7 +63,7 @@ from regrasp_drake.station.palm_toss import (
     palm_twist_at,
     separation_s,
 )
-from regrasp_drake.station.station import start_poses
+from regrasp_drake.station.start_pose import start_poses
 from regrasp_drake.station.throw import free_time_s
 from regrasp_drake.throw_catch import plan_catch, watch, with_release
 from regrasp_drake.world.objects import load_catalogue

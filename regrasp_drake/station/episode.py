@@ -31,8 +31,8 @@ from regrasp_drake.station.station import (
     build_episode_diagram,
     continue_with,
     initialize,
-    start_poses,
 )
+from regrasp_drake.station.start_pose import start_poses
 from regrasp_drake.world.objects import ObjectSpec
 
 

@@ -12,29 +12,18 @@ parameters (fixed, or the MLP) and the grasp monitor, outside the station.
 with the loggers and Meshcat.
 """
 
-import copy
 import dataclasses as dc
-import logging
-import pickle
 
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.geometry import (
-    Box,
-    HalfSpace,
     Meshcat,
     MeshcatVisualizer,
     MeshcatVisualizerParams,
-    ProximityProperties,
-    Role,
-    RoleAssign,
     SceneGraph,
 )
 from pydrake.math import RigidTransform
-from pydrake.multibody.math import SpatialVelocity
 from pydrake.multibody.plant import (
-    AddMultibodyPlant,
-    CoulombFriction,
     MultibodyPlant,
 )
 from pydrake.multibody.tree import (
@@ -46,7 +35,6 @@ from pydrake.systems.analysis import (
     ApplySimulatorConfig,
     InitializeParams,
     Simulator,
-    SimulatorConfig,
 )
 from pydrake.systems.controllers import InverseDynamicsController
 from pydrake.systems.framework import (
@@ -65,7 +53,6 @@ from pydrake.systems.primitives import (
     VectorLogSink,
 )
 
-from regrasp_drake.errors import InputError
 from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
@@ -75,35 +62,17 @@ from regrasp_drake.station.catch_state_machine import (
 )
 from regrasp_drake.station.grasp_monitor import GraspMonitor
 from regrasp_drake.station.mlp_system import MlpSystem, load_weights
+from regrasp_drake.station.plant import add_world, bumper_geometry
 from regrasp_drake.station.scenario import (
     Scenario,
     catch_phase_scenario,
-    scenario_digest,
 )
 from regrasp_drake.station.sensors import InfraredSensors, TactileBumper
+from regrasp_drake.station.start_pose import initial_object_pose
 from regrasp_drake.world import robot
-from regrasp_drake.world.object_model import ObjectSpec, add_object
+from regrasp_drake.world.object_model import ObjectSpec
 
 _IR_FRAMES = [f"ir{i}" for i in range(1, 14)]
-
-# The tactile bumper stands this proud of the palm (paper: 3 x 6 x 0.1 cm).
-_BUMPER_THICKNESS_M = 0.001
-
-
-class _NoDeformableGroundWarning(logging.Filter):
-    """Drake (1.51) warns, each time the ground's half space is registered
-    for contact, that a rigid half space takes no part in deformable
-    contact. Nothing here is deformable: the warning only hides the lines
-    that matter (a one-line error)."""
-
-    def filter(self, record) -> bool:
-        return not record.getMessage().startswith(
-            "Rigid (non-deformable) half spaces are not currently supported "
-            "for deformable contact")
-
-
-logging.getLogger("drake").addFilter(_NoDeformableGroundWarning())
-
 
 class GraspPoseSource(LeafSystem):
     """Outputs the palm's grasp pose X_WG, kept as an abstract parameter so
@@ -246,7 +215,7 @@ def add_station(builder: DiagramBuilder, scenario: Scenario,
     builder.Connect(scene_graph.get_query_output_port(),
                     ir.GetInputPort("query_object"))
     bumper = builder.AddNamedSystem("bumper", TactileBumper(
-        plant, _bumper_geometry(plant, scene_graph, instances.hand,
+        plant, bumper_geometry(plant, scene_graph, instances.hand,
                                 scenario.contact.palm),
         object_geometries, s.period_s))
     builder.Connect(plant.get_contact_results_output_port(),
@@ -275,7 +244,7 @@ def add_station(builder: DiagramBuilder, scenario: Scenario,
         plant=plant, scene_graph=scene_graph, arm=instances.arm,
         hand=instances.hand, object_body=object_body, infrared=ir,
         bumper=bumper,
-        X_WO_initial=_initial_object_pose(plant, instances, obj, scenario),
+        X_WO_initial=initial_object_pose(plant, instances, obj, scenario),
         inputs=inputs, outputs=outputs)
 
 
@@ -393,36 +362,6 @@ def build_episode_diagram(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
                           meshcat=meshcat)
 
 
-def add_world(builder: DiagramBuilder, scenario: Scenario, obj: ObjectSpec):
-    """Adds the physics to `builder`: the scenario's MultibodyPlant (point
-    contact, no air drag) with the robot of its directives (PUMA +
-    hand welded to the world), the object a
-    free body with the scenario's contact properties, the ground, gravity;
-    finalized, robot self-collisions filtered. Returns (plant, scene_graph,
-    robot instances, object body, the object's collision geometry ids)."""
-    plant, scene_graph = AddMultibodyPlant(scenario.plant_config, builder)
-    instances = robot.add_puma_and_hand(plant, scenario.directives)
-    friction = CoulombFriction(scenario.contact.friction_coefficient,
-                               scenario.contact.friction_coefficient)
-    object_body = add_object(
-        plant, obj, friction,
-        rounded_boxes=scenario.contact.object_boxes == "rounded")
-    plant.RegisterCollisionGeometry(
-        plant.world_body(), RigidTransform(), HalfSpace(), "ground", friction)
-    # Meshcat does not draw half spaces: the ground is drawn as a slab.
-    plant.RegisterVisualGeometry(
-        plant.world_body(), RigidTransform([0.0, 0.0, -0.01]),
-        Box(4.0, 4.0, 0.02), "ground", [0.55, 0.55, 0.5, 1.0])
-    plant.mutable_gravity_field().set_gravity_vector(
-        [0.0, 0.0, -scenario.gravity_m_per_s2])
-    plant.Finalize()
-    robot.exclude_robot_self_collisions(plant, scene_graph)
-    _keep_palm(plant, scene_graph, instances.hand, scenario.contact.palm)
-    object_geometries = _set_object_contact(plant, scene_graph, object_body,
-                                            scenario)
-    return plant, scene_graph, instances, object_body, object_geometries
-
-
 def _take_out_pd_gains(plant: MultibodyPlant, hand) -> list[tuple]:
     """Removes the in-plant PD controllers of the hand's actuators and
     returns their gains, (kp
@@ -477,208 +416,6 @@ def add_finger_servos(builder: DiagramBuilder, plant: MultibodyPlant, hand):
     builder.Connect(mux.get_output_port(0), pd.get_input_port())
     builder.Connect(pd.get_output_port(), plant.get_actuation_input_port(hand))
     return mux
-
-
-def _set_object_contact(plant, scene_graph, object_body, scenario):
-    """Gives the object's collision geometries the scenario's point-contact
-    stiffness, dissipation and friction; returns their ids."""
-    inspector = scene_graph.model_inspector()
-    source_id = plant.get_source_id()
-    c = scenario.contact
-    ids = list(plant.GetCollisionGeometriesForBody(object_body))
-    for geometry_id in ids:
-        props = ProximityProperties(inspector.GetProximityProperties(geometry_id))
-        for name, value in (
-                ("point_contact_stiffness", float(c.point_stiffness_N_per_m)),
-                ("hunt_crossley_dissipation",
-                 float(c.hunt_crossley_dissipation_s_per_m))):
-            if props.HasProperty("material", name):
-                props.UpdateProperty("material", name, value)
-            else:
-                props.AddProperty("material", name, value)
-        scene_graph.AssignRole(source_id, geometry_id, props, RoleAssign.kReplace)
-    return ids
-
-
-def _palm_geometries(plant, scene_graph, hand) -> dict:
-    """The palm's collision geometries by name (sdf/hand.sdf)."""
-    inspector = scene_graph.model_inspector()
-    palm = plant.GetBodyByName("palm", hand)
-    return {inspector.GetName(g).split("::")[-1]: g
-            for g in plant.GetCollisionGeometriesForBody(palm)}
-
-
-def _keep_palm(plant, scene_graph, hand, palm: str) -> None:
-    """Keeps the palm's collision geometry the scenario names
-    (contact.palm): "box", the flat box and the bumper's thin box; or
-    "pads", the sphere pads over a lowered box (named pads_*). The other
-    set loses its proximity role."""
-    for name, geometry_id in _palm_geometries(plant, scene_graph,
-                                              hand).items():
-        if name.startswith("pads_") != (palm == "pads"):
-            scene_graph.RemoveRole(plant.get_source_id(), geometry_id,
-                                   Role.kProximity)
-
-
-def _bumper_geometry(plant, scene_graph, hand, palm: str = "box"):
-    """The tactile bumper's geometry: the thin box on the flat palm, or
-    the pads under it on the padded palm (a list)."""
-    geometries = _palm_geometries(plant, scene_graph, hand)
-    if palm == "pads":
-        ids = [g for name, g in geometries.items()
-               if name.startswith("pads_bumper_")]
-        if ids:
-            return ids
-    elif "bumper" in geometries:
-        return geometries["bumper"]
-    raise RuntimeError(f"the hand model has no bumper geometry for the "
-                       f"palm {palm!r}")
-
-
-def start_poses(scenario: Scenario,
-                obj: ObjectSpec) -> tuple[RigidTransform, RigidTransform]:
-    """(X_WP, X_WO) before the throw: the hand's palm_surface frame at the
-    throw's start pose and the object lying in the open palm (as every
-    episode starts; for the palm toss, its rest pose). Computed once per
-    scenario and object in a process."""
-    key = (scenario_digest(scenario), pickle.dumps(obj))
-    if key not in _START_POSES:
-        builder = DiagramBuilder()
-        plant, _, instances, _, _ = add_world(builder, scenario, obj)
-        context = plant.CreateDefaultContext()
-        plant.SetPositions(context, instances.arm,
-                           throw.start_q(scenario.throw))
-        plant.SetPositions(context, instances.hand, robot.HAND_OPEN)
-        X_WP = plant.GetFrameByName(
-            "palm_surface", instances.hand).CalcPoseInWorld(context)
-        _START_POSES[key] = (X_WP, _initial_object_pose(plant, instances,
-                                                        obj, scenario))
-    return _START_POSES[key]
-
-
-_START_POSES: dict = {}
-
-
-def _initial_object_pose(plant, instances, obj, scenario) -> RigidTransform:
-    """The object lies in the palm, its symmetry axis along the palm's y (the
-    knuckle line), its lowest point 1 mm above the bumper, its centre of mass
-    over the palm's centre (so that a lopsided object does not tip off).
-    For the palm toss, the object then comes to rest there (rest_pose)."""
-    context = plant.CreateDefaultContext()
-    plant.SetPositions(context, instances.arm, throw.start_q(scenario.throw))
-    plant.SetPositions(context, instances.hand, robot.HAND_OPEN)
-    X_WP = plant.GetFrameByName("palm_surface", instances.hand).CalcPoseInWorld(
-        context)
-    lift = -_lowest_z(obj) + _BUMPER_THICKNESS_M + 1e-3
-    X_WO = X_WP @ RigidTransform([-obj.r_cm, -obj.h_cm, lift])
-    if throw.is_toss(scenario.throw):
-        return rest_pose(scenario, obj, X_WO)
-    return X_WO
-
-
-# Dynamic relaxation (rest_pose): the object moves freely in steps of this
-# length, [s], its velocity zeroed whenever its kinetic energy falls (kinetic
-# damping: it stops at the bottom of each swing) ...
-_RELAX_STEP_S = 0.001
-# ... until this many steps in a row move it less than this, [m] and [rad],
-# or after this many steps.
-_RELAX_STILL_STEPS = 20
-_RELAX_TOLERANCE = 2e-6
-_RELAX_MAX_STEPS = 3000
-# An object that ends farther than this from where it was laid has fallen
-# off the palm, [m].
-_RELAX_REACH_M = 0.05
-
-
-def rest_pose(scenario: Scenario, obj: ObjectSpec,
-              X_WO: RigidTransform) -> RigidTransform:
-    """The object's static equilibrium on the open palm at the toss's start
-    pose, found from X_WO by dynamic relaxation: the scenario's world (its
-    robot, contact and gravity) on a discrete plant of step _RELAX_STEP_S
-    whatever the scenario's step or integrator, so that every step starts
-    from the same pose; the robot's joints locked; kinetic damping. A
-    lopsided object placed with its centre of mass over the palm's centre
-    is not at rest: on the padded palm it rolls about its own axis and, as
-    rolling dissipates nothing in point contact, rocks through the whole
-    throw (up to 19 rad/s relative to the palm, at a phase that depends on
-    the time step; studies/palm_toss/FINDINGS.md). Computed once per
-    scenario (but for its step and integrator) and object in a process."""
-    relaxing = copy.deepcopy(scenario)
-    relaxing.plant_config.time_step = _RELAX_STEP_S
-    relaxing.simulator_config = SimulatorConfig()
-    key = (scenario_digest(relaxing), pickle.dumps(obj),
-           X_WO.GetAsMatrix34().tobytes())
-    if key not in _REST_POSES:
-        _REST_POSES[key] = _relax(relaxing, obj, X_WO)
-    return _REST_POSES[key]
-
-
-_REST_POSES: dict = {}
-
-
-def _relax(scenario: Scenario, obj: ObjectSpec,
-           X_WO: RigidTransform) -> RigidTransform:
-    builder = DiagramBuilder()
-    plant, _, instances, object_body, _ = add_world(builder, scenario, obj)
-    simulator = Simulator(builder.Build())
-    context = simulator.get_mutable_context()
-    plant_context = plant.GetMyMutableContextFromRoot(context)
-    plant.SetPositions(plant_context, instances.arm,
-                       throw.start_q(scenario.throw))
-    plant.SetPositions(plant_context, instances.hand, robot.HAND_OPEN)
-    for instance in (instances.arm, instances.hand):
-        for index in plant.GetJointIndices(instance):
-            plant.get_joint(index).Lock(plant_context)
-        plant.get_actuation_input_port(instance).FixValue(
-            plant_context, np.zeros(plant.num_actuated_dofs(instance)))
-    plant.get_desired_state_input_port(instances.hand).FixValue(
-        plant_context,
-        np.concatenate([robot.HAND_OPEN, np.zeros(len(robot.HAND_OPEN))]))
-    plant.SetFreeBodyPose(plant_context, object_body, X_WO)
-    simulator.Initialize()
-    before, after = X_WO, X_WO
-    energy, still = 0.0, 0
-    for _ in range(_RELAX_MAX_STEPS):
-        simulator.AdvanceTo(context.get_time() + _RELAX_STEP_S)
-        after = plant.EvalBodyPoseInWorld(plant_context, object_body)
-        moved = max(np.linalg.norm(after.translation() - before.translation()),
-                    after.rotation().inverse().multiply(before.rotation())
-                    .ToAngleAxis().angle())
-        still = still + 1 if moved < _RELAX_TOLERANCE else 0
-        if still >= _RELAX_STILL_STEPS:
-            break
-        before = after
-        previous, energy = energy, plant.EvalKineticEnergy(plant_context)
-        if energy < previous:
-            plant.SetFreeBodySpatialVelocity(
-                plant_context, object_body, SpatialVelocity(np.zeros(6)))
-            energy = 0.0
-    moved = np.linalg.norm(after.translation() - X_WO.translation())
-    if moved > _RELAX_REACH_M:
-        raise InputError(
-            f"object {obj.name}: does not rest on the open palm (it moved "
-            f"{moved:.3f} m from where it was laid), expected an object that "
-            "lies still "
-            "on the palm for the palm toss")
-    return after
-
-
-def _lowest_z(obj) -> float:
-    """The lowest z of the object's surface in its own frame, [m]."""
-    lowest = 0.0
-    for piece in obj.pieces:
-        z = piece.center[2]
-        if piece.shape == "box":
-            z -= piece.size[2] / 2
-        elif piece.shape == "sphere":
-            z -= piece.radius
-        elif piece.axis == 2:  # a cylinder or capsule standing along z
-            z -= piece.length / 2 + (piece.radius if piece.shape == "capsule"
-                                     else 0.0)
-        else:
-            z -= piece.radius
-        lowest = min(lowest, z)
-    return lowest
 
 
 def initialize(episode: EpisodeDiagram, scenario: Scenario) -> Simulator:

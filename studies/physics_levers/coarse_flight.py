@@ -21,7 +21,7 @@ from pydrake.systems.framework import DiagramBuilder
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.episode import THROWS, release_time, run_episode
 from regrasp_drake.station.scenario import load_scenario, with_catch_time_step
-from regrasp_drake.station.station import add_world
+from regrasp_drake.station.plant import add_world
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world import robot
 from regrasp_drake.world.objects import resolve_object
