@@ -25,6 +25,7 @@ from regrasp_drake.station.scenario import (
     scenario_digest,
     target_of,
 )
+from regrasp_drake.station.start_pose import start_poses
 from regrasp_drake.station.station import (
     EpisodeDiagram,
     Loggers,
@@ -32,7 +33,6 @@ from regrasp_drake.station.station import (
     continue_with,
     initialize,
 )
-from regrasp_drake.station.start_pose import start_poses
 from regrasp_drake.world.objects import ObjectSpec
 
 
