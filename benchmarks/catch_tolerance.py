@@ -102,14 +102,14 @@ def _run(args) -> int:
     from pydrake.math import RigidTransform
     from pydrake.systems.analysis import InitializeParams
 
-    from regrasp_drake.planning.ik import ArmIk
-    from regrasp_drake.station.episode import (
+    from regrasp_drake.episode.run import (
         advance_to_outcome,
         hand_over,
         read_ending,
         read_outcome,
         release_time,
     )
+    from regrasp_drake.planning.ik import ArmIk
     from regrasp_drake.station.scenario import scenario_digest
     from regrasp_drake.station.station import build_episode_diagram, initialize
     args.out.mkdir(parents=True, exist_ok=True)

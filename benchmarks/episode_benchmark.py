@@ -52,7 +52,7 @@ import torch
 from regrasp_drake.errors import InputError
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.catch_state_machine import Phase
-from regrasp_drake.station.episode import (
+from regrasp_drake.episode.run import (
     THROWS,
     advance_to_outcome,
     hand_over,

@@ -118,12 +118,12 @@ def _trial(task):
     mode, name, level, trial, library, base, flight_model = task
     import torch
 
+    from regrasp_drake.episode.run import run_episode
     from regrasp_drake.errors import InputError
     from regrasp_drake.learning.flight_predictor import FlightPredictor
     from regrasp_drake.learning.library import lookup
     from regrasp_drake.planning.free_flight import flight_from_release
     from regrasp_drake.planning.ik import ArmIk
-    from regrasp_drake.station.episode import run_episode
     from regrasp_drake.throw_catch import (
         ReleaseCorrection,
         plan_catch,

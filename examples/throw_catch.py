@@ -31,10 +31,10 @@ from regrasp_drake.parameter_space import cell_parameters, nearest_cell
 from regrasp_drake.paths import MODELS_DIR, OUT_DIR
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.plots import plot_episode
-from regrasp_drake.station.episode import run_episode
+from regrasp_drake.episode.run import run_episode
 from regrasp_drake.station.mlp_system import load_weights
 from regrasp_drake.planning.grasp import Target, check_reachable
-from regrasp_drake.station.replay import make_meshcat
+from regrasp_drake.episode.replay import make_meshcat
 from regrasp_drake.station.scenario import load_scenario, target_of, with_target
 from regrasp_drake.throw_catch import (
     episode_caption,

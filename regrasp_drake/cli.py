@@ -79,8 +79,8 @@ def _cmd_catch(args) -> int:
     check_catch_parameters(args.h_catch, args.h_down,
                            names=("--h-catch", "--h-down"))
     scenario, obj, _, _ = _scenario_and_object(args)
+    from regrasp_drake.episode.replay import make_meshcat
     from regrasp_drake.planning.ik import ArmIk
-    from regrasp_drake.station.replay import make_meshcat
     from regrasp_drake.throw_catch import catch_once, episode_caption, save_replay
     meshcat = make_meshcat() if args.html is not None else None
     result, plan = catch_once(scenario, obj, h_catch=args.h_catch,

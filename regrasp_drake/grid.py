@@ -3,7 +3,7 @@
 
 A success map runs one catch episode per cell. The cells share one simulated
 throw up to the moment their parameters are first read, and fork from there
-(station/branching.py), `workers` at a time; each result is written as a JSON
+(episode/branching.py), `workers` at a time; each result is written as a JSON
 line as soon as it is known, and a run resumes from that file.
 """
 
@@ -14,6 +14,7 @@ from pathlib import Path
 
 import torch
 
+from regrasp_drake.episode.branching import run_cells
 from regrasp_drake.errors import InputError, check_interrupt
 from regrasp_drake.input_files import load_json
 from regrasp_drake.map_rows import open_rows, plan_path, read_rows
@@ -28,7 +29,6 @@ from regrasp_drake.parameter_space import (  # noqa: F401 (nearest_cell: re-expo
 )
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.progress import bar as progress_bar
-from regrasp_drake.station.branching import run_cells
 from regrasp_drake.station.scenario import load_scenario, scenario_digest
 from regrasp_drake.throw_catch import plan_catches, watch
 from regrasp_drake.world.objects import resolve_object
@@ -80,7 +80,7 @@ def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
     appended and flushed as each cell finishes); returns {cell: row}.
 
     The cells share one simulated throw up to their triggers (see
-    station/branching.py); `workers` simulations run at once. `only`: a
+    episode/branching.py); `workers` simulations run at once. `only`: a
     subset of the cells (a coarse map), default all."""
     out = Path(out)
     done = read_rows(out)

@@ -17,6 +17,13 @@ from pydrake.common.eigen_geometry import Quaternion
 from pydrake.geometry import Cylinder, Rgba, Sphere
 from pydrake.math import RigidTransform, RotationMatrix
 
+from regrasp_drake.episode.replay import draw_path, framing_view, save_html
+from regrasp_drake.episode.run import (
+    EpisodeResult,
+    release_time,
+    run_episode,
+    start_grasp,
+)
 from regrasp_drake.errors import InputError
 from regrasp_drake.parameter_space import H_CATCH_RANGE
 from regrasp_drake.planning import grasp
@@ -30,13 +37,6 @@ from regrasp_drake.planning.free_flight import flight_from_release
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
 from regrasp_drake.station.catch_state_machine import Phase, lowered_pose
-from regrasp_drake.station.episode import (
-    EpisodeResult,
-    release_time,
-    run_episode,
-    start_grasp,
-)
-from regrasp_drake.station.replay import draw_path, framing_view, save_html
 from regrasp_drake.station.scenario import Scenario, target_of
 from regrasp_drake.station.station import build_episode_diagram
 from regrasp_drake.world.objects import ObjectSpec

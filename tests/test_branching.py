@@ -8,15 +8,15 @@ from unittest import mock
 import numpy as np
 import torch
 
-from regrasp_drake.errors import InputError
-from regrasp_drake.grid import plan_object
-from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.station.branching import run_cells
-from regrasp_drake.station.episode import (
+from regrasp_drake.episode.branching import run_cells
+from regrasp_drake.episode.run import (
     read_ending,
     release_time,
     run_episode,
 )
+from regrasp_drake.errors import InputError
+from regrasp_drake.grid import plan_object
+from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.scenario import load_scenario
 from regrasp_drake.world.objects import resolve_object
 from tests.fixtures import Row2Fixture
@@ -71,7 +71,7 @@ class RunCellsTest(Row2Fixture, unittest.TestCase):
         plain = run_episode(self.scenario, self.obj, ik=self.ik,
                             X_WG=self.plan.X_WG, catch_parameters=parameters)
         same = copy.deepcopy(self.scenario)
-        with mock.patch("regrasp_drake.station.episode.catch_phase_scenario",
+        with mock.patch("regrasp_drake.episode.run.catch_phase_scenario",
                         return_value=same):
             handed = run_episode(self.scenario, self.obj, ik=self.ik,
                                  X_WG=self.plan.X_WG,

@@ -27,13 +27,13 @@ import unittest
 
 import torch
 
+from regrasp_drake.episode.run import release_time
 from regrasp_drake.learning.flight_predictor import FlightPredictor
 from regrasp_drake.learning.library import load_library
 from regrasp_drake.learning.table1 import catch_point_check
 from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning.free_flight import flight_from_release
 from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.station.episode import release_time
 from regrasp_drake.station.scenario import load_scenario, scenario_digest
 from regrasp_drake.throw_catch import plan_catch, plan_watched, watch
 from regrasp_drake.world.objects import resolve_object

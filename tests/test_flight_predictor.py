@@ -9,6 +9,7 @@ import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RollPitchYaw, RotationMatrix
 
+from regrasp_drake.episode.run import release_time, run_episode
 from regrasp_drake.errors import InputError
 from regrasp_drake.learning.flight_predictor import (
     FlightPredictor,
@@ -21,7 +22,6 @@ from regrasp_drake.learning.learning_phase import NoCatchPoint, learn
 from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning.free_flight import flight_from_release
 from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.station.episode import release_time, run_episode
 from regrasp_drake.station.mlp_system import load_weights
 from regrasp_drake.station.scenario import load_scenario
 from regrasp_drake.throw_catch import plan_catch, seen_flight, watch

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
+from regrasp_drake.episode.run import read_grasp, start_grasp
 from regrasp_drake.errors import InputError
 from regrasp_drake.learning.dataset import generate
 from regrasp_drake.learning.flight_predictor import FlightPredictor
@@ -17,7 +18,6 @@ from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning import grasp
 from regrasp_drake.planning.grasp import Target
 from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.station.episode import read_grasp, start_grasp
 from regrasp_drake.station.mlp_system import load_weights
 from regrasp_drake.station.scenario import (
     load_scenario,

@@ -9,10 +9,10 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from regrasp_drake.episode.run import release_time, run_episode
 from regrasp_drake.learning.flight_predictor import FlightPredictor
 from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning.free_flight import flight_from_release
-from regrasp_drake.station.episode import release_time, run_episode
 from regrasp_drake.station.scenario import ThrowNoise
 from regrasp_drake.throw_catch import (
     ReleaseCorrection,

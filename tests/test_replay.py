@@ -17,10 +17,8 @@ from pydrake.multibody.tree import SpatialInertia, UnitInertia
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
-from regrasp_drake.learning.run_replay import unpack
-from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.station import replay
-from regrasp_drake.station.replay import (
+from regrasp_drake.episode import replay
+from regrasp_drake.episode.replay import (
     CHROMIUM,
     MESHCAT_FOV_DEG,
     ReplayError,
@@ -31,6 +29,8 @@ from regrasp_drake.station.replay import (
     save_html,
     write_html,
 )
+from regrasp_drake.learning.run_replay import unpack
+from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.scenario import load_scenario
 from regrasp_drake.throw_catch import catch_once, episode_caption, save_replay
 from regrasp_drake.world.objects import load_catalogue

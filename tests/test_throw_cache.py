@@ -9,8 +9,8 @@ import numpy as np
 import torch
 from pydrake.math import RigidTransform
 
+from regrasp_drake.episode.run import THROWS, Logs, run_episode
 from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.station.episode import THROWS, Logs, run_episode
 from regrasp_drake.station.scenario import ThrowNoise, load_scenario
 from regrasp_drake.throw_catch import plan_catch
 from regrasp_drake.world.objects import resolve_object

@@ -5,7 +5,7 @@ ranked moments of `throw_catch.plan_catches`, at least
 CATCH_POINT_SEPARATION_S apart): the watching throw and the offline stage
 (the catch point and its v_catch), then one catch episode per cell of the
 150-cell parameter space (the success map; cells share the simulated throw
-up to their trigger, see station/branching.py). An entry is named after its
+up to their trigger, see episode/branching.py). An entry is named after its
 object, `<object>` for the first catch point and `<object>@k` for the k-th.
 The label of an entry is the catching cell most robust to error:
 

@@ -73,6 +73,12 @@ import torch
 from pydrake.math import RigidTransform
 
 from regrasp_drake import __version__
+from regrasp_drake.episode.run import (
+    EpisodeResult,
+    release_time,
+    run_episode,
+    start_grasp,
+)
 from regrasp_drake.errors import InputError, field_error
 from regrasp_drake.grid import ending
 from regrasp_drake.learning import library as lib
@@ -98,12 +104,6 @@ from regrasp_drake.planning.catch_plan import (
 )
 from regrasp_drake.planning.free_flight import flight_from_release
 from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.station.episode import (
-    EpisodeResult,
-    release_time,
-    run_episode,
-    start_grasp,
-)
 from regrasp_drake.station.mlp_system import FEATURE_NAMES, CatchMlp, ParameterSpace
 from regrasp_drake.station.scenario import Scenario, scenario_digest, target_of
 from regrasp_drake.throw_catch import (

@@ -4,11 +4,11 @@ reachable catch point (`NoCatchPoint`)."""
 
 import dataclasses as dc
 
+from regrasp_drake.episode.run import EpisodeResult
 from regrasp_drake.errors import InputError
 from regrasp_drake.learning import library as lib
 from regrasp_drake.learning.observation import episode_dict, plan_dict
 from regrasp_drake.parameter_space import HELD_OUTCOMES, cell_parameters
-from regrasp_drake.station.episode import EpisodeResult
 from regrasp_drake.station.mlp_system import FEATURE_NAMES
 from regrasp_drake.throw_catch import CatchPlan
 

@@ -4,12 +4,12 @@ and the plan; and how episodes and plans are reported in JSON."""
 
 import dataclasses as dc
 
+from regrasp_drake.episode.run import EpisodeResult
 from regrasp_drake.errors import InputError
 from regrasp_drake.parameter_space import H_CATCH_RANGE, H_DOWN_VALUES
 from regrasp_drake.planning.catch_plan import CatchPoint, catch_moments
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
-from regrasp_drake.station.episode import EpisodeResult
 from regrasp_drake.station.scenario import Scenario
 from regrasp_drake.throw_catch import (
     CatchPlan,

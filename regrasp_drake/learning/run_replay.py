@@ -29,7 +29,7 @@ from pydrake.common.eigen_geometry import Quaternion
 from pydrake.geometry import MeshcatAnimation
 from pydrake.math import RigidTransform
 
-from regrasp_drake.station.replay import make_meshcat, write_html
+from regrasp_drake.episode.replay import make_meshcat, write_html
 
 
 class RunReplay:

@@ -78,7 +78,7 @@ class GraspPoseSource(LeafSystem):
     """Outputs the palm's grasp pose X_WG, kept as an abstract parameter so
     that it can be set in a running simulation's context (`set_pose`): a
     catch planned when the object is seen leaving the hand
-    (`station.episode.run_episode`'s `at_release`)."""
+    (`episode.run.run_episode`'s `at_release`)."""
 
     def __init__(self, X_WG: RigidTransform):
         LeafSystem.__init__(self)

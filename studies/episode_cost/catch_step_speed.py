@@ -31,8 +31,8 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     import torch
 
+    from regrasp_drake.episode.run import THROWS, run_episode
     from regrasp_drake.planning.ik import ArmIk
-    from regrasp_drake.station.episode import THROWS, run_episode
     from regrasp_drake.station.scenario import (
         load_scenario,
         with_catch_time_step,

@@ -28,9 +28,7 @@ import time
 
 import numpy as np
 
-from regrasp_drake.errors import check_interrupt
-from regrasp_drake.station.catch_state_machine import Phase
-from regrasp_drake.station.episode import (
+from regrasp_drake.episode.run import (
     THROWS,
     advance_to_outcome,
     hand_over,
@@ -39,6 +37,8 @@ from regrasp_drake.station.episode import (
     read_outcome,
     start_grasp,
 )
+from regrasp_drake.errors import check_interrupt
+from regrasp_drake.station.catch_state_machine import Phase
 from regrasp_drake.station.station import (
     build_episode_diagram,
     initialize,
