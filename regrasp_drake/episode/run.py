@@ -31,6 +31,7 @@ from regrasp_drake.station.station import (
     Loggers,
     build_episode_diagram,
     continue_with,
+    fixed_catch_parameters,
     initialize,
 )
 from regrasp_drake.world.objects import ObjectSpec
@@ -133,10 +134,8 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
             mlp_features=mlp_features, meshcat=meshcat,
             throw_number=throw_number)
 
-    if catch_parameters is None and (
-            X_WG is None or scenario.catch.parameter_source == "fixed"):
-        # What build_episode_diagram takes then (the MLP's otherwise).
-        catch_parameters = (scenario.catch.h_catch_m, scenario.catch.h_down_m)
+    catch_parameters = fixed_catch_parameters(scenario, X_WG,
+                                              catch_parameters)
     key = THROWS.key(scenario, obj, throw_number, catch_parameters, meshcat)
     handover = THROWS.resume(key, rebuild, X_WG, catch_parameters, ik)
     if handover is not None:  # this throw's release, simulated before

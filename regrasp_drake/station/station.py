@@ -311,6 +311,18 @@ def add_catch_controller(builder: DiagramBuilder, station: Station,
                            grasp_pose=grasp, parameters=params)
 
 
+def fixed_catch_parameters(scenario: Scenario, X_WG: RigidTransform | None,
+                           catch_parameters=None):
+    """The (h_catch, h_down) an episode's diagram holds fixed, [m]: those
+    given; else, on a watching throw or when the scenario's
+    catch.parameter_source is "fixed", the scenario's catch.h_catch_m and
+    h_down_m; else None (the MLP system predicts them)."""
+    if catch_parameters is None and (
+            X_WG is None or scenario.catch.parameter_source == "fixed"):
+        return (scenario.catch.h_catch_m, scenario.catch.h_down_m)
+    return catch_parameters
+
+
 def build_episode_diagram(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
                           X_WG: RigidTransform | None, catch_parameters=None,
                           mlp_features=None, meshcat: Meshcat | None = None,
@@ -325,9 +337,7 @@ def build_episode_diagram(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
     throw_number: which throw of a run this is; it seeds the release noise
     when the scenario has any (throw.noise).
     """
-    if catch_parameters is None and (
-            X_WG is None or scenario.catch.parameter_source == "fixed"):
-        catch_parameters = (scenario.catch.h_catch_m, scenario.catch.h_down_m)
+    catch_parameters = fixed_catch_parameters(scenario, X_WG, catch_parameters)
     if robot.directives_yaml(ik.directives) != robot.directives_yaml(
             scenario.directives):
         raise ValueError("build_episode_diagram: the ArmIk was built for "
