@@ -59,11 +59,8 @@ from regrasp_drake.episode.run import (
     release_time,
     run_episode,
 )
-from regrasp_drake.station.scenario import (
-    catch_phase_scenario,
-    check_catch_parameters,
-    load_scenario,
-)
+from regrasp_drake.station.scenario import catch_phase_scenario, load_scenario
+from regrasp_drake.station.scenario_checks import check_catch_parameters
 from regrasp_drake.station.station import (
     build_episode_diagram,
     continue_with,
