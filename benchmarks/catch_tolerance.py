@@ -34,6 +34,8 @@ import sys
 import time
 from pathlib import Path
 
+from regrasp_drake import atomic_io
+
 # --scenario and --scenario-name, shared by the benchmarks.
 _spec = importlib.util.spec_from_file_location(
     "scenario_args", Path(__file__).with_name("scenario_args.py"))
@@ -72,7 +74,8 @@ def watched_plan(scenario, obj, ik, out: Path):
     if cache.is_file():
         return RigidTransform(json.loads(cache.read_text())["X_WG"])
     X_WG = plan_catch(scenario, obj, ik, watch(scenario, obj, ik)).X_WG
-    cache.write_text(json.dumps({"X_WG": X_WG.GetAsMatrix4().tolist()}))
+    atomic_io.write_json(cache, {"X_WG": X_WG.GetAsMatrix4().tolist()},
+                         indent=None)
     return X_WG
 
 
@@ -142,7 +145,7 @@ def _run(args, stack) -> int:
     name = f"{args.object}_{args.h_catch:g}_{args.h_down:g}"
     lines = args.out / (f"{name}_{args.tag}.jsonl" if args.tag
                         else f"{name}.jsonl")
-    with open(lines, "w") as f:
+    with atomic_io.replace(lines, "w") as f:
         for offset in offsets:
             dx, dy, dz = (*offset, 0)[:3]
             context = saved.Clone()

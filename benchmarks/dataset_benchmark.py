@@ -31,6 +31,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).parent))
 from tree_memory import run_sampled  # noqa: E402
 
+from regrasp_drake import atomic_io
+
 _REPO = Path(__file__).resolve().parents[1]
 
 
@@ -117,7 +119,7 @@ def main(argv=None) -> int:
               + (f", peak memory {f['peak_memory_gib']:.2f} GiB"
                  if "peak_memory_gib" in f else ""))
     args.json.parent.mkdir(parents=True, exist_ok=True)
-    args.json.write_text(json.dumps(report, indent=1) + "\n")
+    atomic_io.write_json(args.json, report)
     return 0
 
 

@@ -44,6 +44,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from regrasp_drake import atomic_io
 
 # --scenario and --scenario-name, shared by the benchmarks.
 _spec = importlib.util.spec_from_file_location(
@@ -119,7 +120,7 @@ def claim_out_dir(out: Path, scenario_path=None) -> None:
                 f"{record}); expected a fresh --out")
         return
     out.mkdir(parents=True, exist_ok=True)
-    record.write_text(json.dumps(fields, indent=1) + "\n")
+    atomic_io.write_json(record, fields)
 
 
 def flight(name, step_ms, scenario_path=None, throw_step_ms=None):
@@ -310,7 +311,7 @@ def _run(args, stack) -> int:
     summary = summarize(results, args.steps_ms) | {
         "throw_step_ms": args.throw_step_ms,
         "scenario": label}
-    args.out.with_suffix(".json").write_text(json.dumps(summary) + "\n")
+    atomic_io.write_json(args.out.with_suffix(".json"), summary, indent=None)
     _print(summary)
     (_plot_flights if args.flights_only else _plot_maps)(
         summary, args.out.with_suffix(".png"))
@@ -385,7 +386,7 @@ def _plot_maps(summary, path):
                  + (f"; scenario {summary['scenario']}"
                     if summary.get("scenario") else ""), fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    atomic_io.save_figure(fig, path, dpi=100)
     plt.close(fig)
 
 
@@ -411,7 +412,7 @@ def _plot_flights(summary, path):
     fig.suptitle(f"Watching throw at {coarse} ms against {min(steps):g} ms",
                  fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    atomic_io.save_figure(fig, path, dpi=100)
     plt.close(fig)
 
 

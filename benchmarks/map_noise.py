@@ -30,11 +30,11 @@ import regrasp_drake  # noqa: F401, I001 (first, see above)
 import argparse
 import contextlib
 import importlib.util
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
+from regrasp_drake import atomic_io
 
 _HERE = Path(__file__).parent
 _spec = importlib.util.spec_from_file_location(
@@ -67,9 +67,9 @@ def _write_scenario(directory: Path, std: float, seed: int,
         scenario.throw, noise=ThrowNoise(
             joint_velocity_std_rad_per_s=float(std), seed=int(seed))))
     path = directory / "scenario.yaml"
-    path.write_text("# benchmarks/map_noise.py: "
-                    f"{label or 'the shipped scenario'} with release noise.\n"
-                    + scenario_yaml(scenario))
+    atomic_io.write_text(path, "# benchmarks/map_noise.py: "
+                         f"{label or 'the shipped scenario'} with release "
+                         "noise.\n" + scenario_yaml(scenario))
     return path
 
 
@@ -177,7 +177,7 @@ def _run(args, stack) -> int:
     summary = {"step_ms": args.step_ms, "stds_rad_per_s": args.stds,
                "seeds": args.seeds, "scenario": label,
                "objects": summarize(maps, args.stds)}
-    args.out.with_suffix(".json").write_text(json.dumps(summary) + "\n")
+    atomic_io.write_json(args.out.with_suffix(".json"), summary, indent=None)
     _print(summary)
     _plot(summary, args.out.with_suffix(".png"))
     return 0
@@ -218,7 +218,7 @@ def _plot(summary, path):
                  f"step {summary['step_ms']:g} ms", fontsize=9)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    atomic_io.save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 

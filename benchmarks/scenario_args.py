@@ -18,6 +18,7 @@ def resolved(args, stack: contextlib.ExitStack):
     workers. Returns how the scenario was given (None: the shipped one)."""
     if args.scenario_name is None:
         return str(args.scenario) if args.scenario else None
+    from regrasp_drake import atomic_io
     from regrasp_drake.station.scenario import load_scenario, scenario_yaml
     scenario = load_scenario(args.scenario, name=args.scenario_name)
     label = " ".join(f"{flag} {value}" for flag, value in (
@@ -26,7 +27,7 @@ def resolved(args, stack: contextlib.ExitStack):
     directory = Path(stack.enter_context(
         tempfile.TemporaryDirectory(prefix="regrasp-scenario-")))
     args.scenario = directory / f"{args.scenario_name}.yaml"
-    args.scenario.write_text(scenario_yaml(scenario))
+    atomic_io.write_text(args.scenario, scenario_yaml(scenario))
     return label
 
 

@@ -20,6 +20,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from regrasp_drake import atomic_io
 from regrasp_drake.errors import (
     InputError,
     check_output_path,
@@ -97,7 +98,7 @@ def _resolved_scenario(args):
                                    if value is not None)
     with tempfile.TemporaryDirectory(prefix="regrasp-scenario-") as d:
         args.scenario = Path(d) / "scenario.yaml"
-        args.scenario.write_text(scenario_yaml(scenario))
+        atomic_io.write_text(args.scenario, scenario_yaml(scenario))
         yield
 
 
@@ -168,8 +169,7 @@ def _cmd_catch(args) -> int:
         plot_episode(result, args.plot)
     summary = result.summary() | {"plan": plan.as_dict()}
     print(json.dumps(summary, indent=1))
-    if args.json:
-        args.json.write_text(json.dumps(summary, indent=1) + "\n")
+    _write_json(args.json, summary)
     return 0
 
 
@@ -219,7 +219,7 @@ def _scenario_and_object(args):
 
 def _write_json(path, data) -> None:
     if path:
-        path.write_text(json.dumps(data, indent=1) + "\n")
+        atomic_io.write_json(path, data)
 
 
 def _cmd_throw(args) -> int:
@@ -432,7 +432,7 @@ def _cmd_train(args) -> int:
         from regrasp_drake.learning.train import repeated_splits
         report["repeated_splits"] = repeated_splits(
             data, range(args.seed, args.seed + args.splits))
-        report_json.write_text(json.dumps(report, indent=1) + "\n")
+        _write_json(report_json, report)
     print(json.dumps({k: v for k, v in report.items() if k != "split"},
                      indent=1))
     if not report["held_out"]:
@@ -1023,7 +1023,8 @@ def _check_dataset_dir(label: str, path: Path) -> None:
     if not path.is_dir() or not any(path.iterdir()):
         return
     if not any((path / name).exists() for name in
-               ("provenance.json", "scenario.yaml", "cells", "plans")):
+               ("provenance.json", "scenario.yaml", "cells", "plans",
+                "dataset.lock")):
         raise InputError(f"{label}: got {quote(str(path))}, an existing "
                          "directory that holds no data set, expected a new "
                          "or empty directory or a data set to resume")

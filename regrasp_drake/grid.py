@@ -9,13 +9,13 @@ line as soon as it is known, and a run resumes from that file.
 
 import json
 import multiprocessing
-import os
 import sys
 import time
 from pathlib import Path
 
 import torch
 
+from regrasp_drake import atomic_io
 from regrasp_drake.errors import InputError, check_interrupt
 from regrasp_drake.input_files import load_json
 from regrasp_drake.map_rows import open_rows, plan_path, read_rows
@@ -62,15 +62,14 @@ def append_rows(function, tasks, path: Path, done: dict, key, *,
                 workers: int, label: str, unit: str) -> None:
     """Runs function(task) for every task in `workers` forked processes and
     appends each result row to the JSON-lines file at path as it finishes
-    (flushed, in the tasks' order), into `done` under key(row) too, with a
+    (fsynced, in the tasks' order), into `done` under key(row) too, with a
     progress bar: a killed run resumes with read_rows(path, key)."""
     start = time.perf_counter()
     ctx = multiprocessing.get_context("fork")
     with ctx.Pool(workers) as pool, open_rows(path) as f:
         for n, row in enumerate(pool.imap(function, tasks), 1):
             check_interrupt()
-            f.write(json.dumps(row) + "\n")
-            f.flush()
+            f.append(json.dumps(row))
             done[key(row)] = row
             print_progress(n, len(tasks), start, label, unit)
     end_progress()
@@ -79,7 +78,7 @@ def append_rows(function, tasks, path: Path, done: dict, key, *,
 def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
             progress=True, only=None) -> dict:
     """Runs every cell of `obj`'s success map not yet in `out` (JSON lines,
-    appended and flushed as each cell finishes); returns {cell: row}.
+    appended and fsynced as each cell finishes); returns {cell: row}.
 
     The cells share one simulated throw up to their triggers (see
     station/branching.py); `workers` simulations run at once. `only`: a
@@ -94,9 +93,7 @@ def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
     with open_rows(out) as f:
         def write(i, row):
             row = {"cell": list(todo[i])} | row
-            f.write(json.dumps(row) + "\n")
-            f.flush()
-            os.fsync(f.fileno())
+            f.append(json.dumps(row))
             done[todo[i]] = row
             if progress:
                 print_progress(len(done) - (len(wanted) - len(todo)), len(todo),
@@ -115,15 +112,26 @@ def success_map(*, object_name=None, object_file=None, scenario_path=None,
     """`regrasp-drake grid`: the success map of one object at its
     `catch_point`-th catch point, resumable. What the rows are computed from
     (the object, the catch point, the scenario's digest and the plan) is
-    written beside them (`plan_path`) and must match when a run resumes."""
+    written beside them (`plan_path`) and must match when a run resumes.
+    One run at a time computes a map (map_lock)."""
     torch.set_num_threads(1)
     scenario = load_scenario(scenario_path)
     obj = resolve_object(name=object_name, file=object_file)
     ik = ArmIk(scenario.directives)
     plan = plan_object(scenario, obj, ik, catch_point)
-    check_resume(out, map_source(scenario, obj, catch_point, plan))
-    return run_map(scenario, obj, ik, plan, out, workers=workers,
-                   progress=progress)
+    with map_lock(out):
+        check_resume(out, map_source(scenario, obj, catch_point, plan))
+        return run_map(scenario, obj, ik, plan, out, workers=workers,
+                       progress=progress)
+
+
+def map_lock(out: Path):
+    """The lock a run holds while it computes the map at `out` (F.lock
+    beside it): a second run on it is refused (atomic_io.LockedError naming
+    the first's pid and host)."""
+    out = Path(out)
+    return atomic_io.exclusive(out.with_name(out.name + ".lock"),
+                               what=f"map {out}", wait=False)
 
 
 def map_source(scenario, obj, catch_point: int, plan) -> dict:
@@ -163,7 +171,7 @@ def check_resume(out: Path, source: dict, flag: str = "--out") -> None:
             f"{flag}: {out} holds cells but no {side.name} saying what they "
             "were computed from, expected a new file or one this command "
             f"began: give another {flag}")
-    side.write_text(json.dumps(source, indent=1) + "\n")
+    atomic_io.write_json(side, source)
 
 
 def print_progress(n, total, start, label="", unit="cells"):
