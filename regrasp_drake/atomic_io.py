@@ -46,6 +46,8 @@ _HOST = socket.gethostname()
 # next write of the target removes those its dead writers left (a SIGKILL
 # runs no clean-up).
 _TMP_SUFFIX = ".tmp"
+# How long a run that would be refused a lock tries again first, [s].
+GRACE_S = 1.0
 
 
 class WriteError(InputError):
@@ -268,10 +270,14 @@ def exclusive(lock_file, *, what: str, wait: bool):
     lock_file = Path(lock_file)
     lock = filelock.FileLock(lock_file)
     try:
-        lock.acquire(timeout=-1 if wait else 0)
+        try:
+            lock.acquire(timeout=-1 if wait else 0)
+        except filelock.Timeout:
+            # A holder that just died may have left a freshly forked child
+            # that has not yet closed its copy of the lock (filelock closes
+            # it there); a new holder may not have written its file yet.
+            lock.acquire(timeout=GRACE_S)
     except filelock.Timeout:
-        # The holder may have taken the lock but not yet written its file.
-        time.sleep(0.2)
         raise LockedError(
             f"{what}: in use by {_describe(_read_holder(lock_file))} "
             f"({lock_file}), expected one run at a time on it: wait for that "
