@@ -193,7 +193,6 @@ class ExclusiveTest(unittest.TestCase):
         os.kill(pid, signal.SIGKILL)
         os.waitpid(pid, 0)
         holder = atomic_io.holder_path(self.lock)
-        ino = os.stat(self.lock).st_ino
         try:
             self.assertEqual(json.loads(holder.read_text())["pid"], pid)
             start = time.monotonic()
