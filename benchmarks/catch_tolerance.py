@@ -32,7 +32,7 @@ import sys
 import time
 from pathlib import Path
 
-from regrasp_drake import scenario_args
+from regrasp_drake import atomic_io, scenario_args
 
 GRID_MM = range(-20, 21, 10)
 
@@ -66,7 +66,8 @@ def watched_plan(scenario, obj, ik, out: Path):
     if cache.is_file():
         return RigidTransform(json.loads(cache.read_text())["X_WG"])
     X_WG = plan_catch(scenario, obj, ik, watch(scenario, obj, ik)).X_WG
-    cache.write_text(json.dumps({"X_WG": X_WG.GetAsMatrix4().tolist()}))
+    atomic_io.write_json(cache, {"X_WG": X_WG.GetAsMatrix4().tolist()},
+                         indent=None)
     return X_WG
 
 
@@ -134,7 +135,7 @@ def _run(args) -> int:
     name = f"{args.object}_{args.h_catch:g}_{args.h_down:g}"
     lines = args.out / (f"{name}_{args.tag}.jsonl" if args.tag
                         else f"{name}.jsonl")
-    with open(lines, "w") as f:
+    with atomic_io.replace(lines, "w") as f:
         for offset in offsets:
             dx, dy, dz = (*offset, 0)[:3]
             context = saved.Clone()

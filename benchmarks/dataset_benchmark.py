@@ -30,6 +30,7 @@ from pathlib import Path
 
 from tree_memory import run_sampled  # beside this script
 
+from regrasp_drake import atomic_io
 from regrasp_drake.paths import REPO_DIR as _REPO
 
 
@@ -116,7 +117,7 @@ def main(argv=None) -> int:
               + (f", peak memory {f['peak_memory_gib']:.2f} GiB"
                  if "peak_memory_gib" in f else ""))
     args.json.parent.mkdir(parents=True, exist_ok=True)
-    args.json.write_text(json.dumps(report, indent=1) + "\n")
+    atomic_io.write_json(args.json, report)
     return 0
 
 

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from regrasp_drake import atomic_io
 from regrasp_drake.errors import InputError, check_output_path
 from regrasp_drake.grid import ending, read_rows
 from regrasp_drake.learning.dataset import git_version
@@ -124,7 +125,7 @@ def main(argv=None) -> int:
     except InputError as e:
         print(f"dataset_check.py: error: {e}", file=sys.stderr)
         return 2
-    args.out.write_text(json.dumps(result, indent=1) + "\n")
+    atomic_io.write_json(args.out, result)
     minutes = result["wall_s"] / 60
     print(f"{result['entries']} entries, {result['cells_compared']} cells: "
           f"{'identical' if result['identical'] else 'DIFFERENT'}; "

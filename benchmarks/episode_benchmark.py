@@ -49,6 +49,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from regrasp_drake import atomic_io
 from regrasp_drake.errors import InputError
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.catch_state_machine import Phase
@@ -452,7 +453,7 @@ def main(argv=None) -> int:
         resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20, 3)
     print(json.dumps(report, indent=1))
     args.json.parent.mkdir(parents=True, exist_ok=True)
-    args.json.write_text(json.dumps(report, indent=1) + "\n")
+    atomic_io.write_json(args.json, report)
     plot_shares(report, args.png)
     return 0
 
@@ -507,7 +508,7 @@ def plot_shares(report, path: Path) -> None:
               ncol=2, frameon=False)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    atomic_io.save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 

@@ -43,6 +43,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from regrasp_drake import atomic_io
 
 from regrasp_drake import scenario_args
 from regrasp_drake.convergence import agreement
@@ -105,7 +106,7 @@ def claim_out_dir(out: Path, base=None, label=None) -> None:
                 f"{record}); expected a fresh --out")
         return
     out.mkdir(parents=True, exist_ok=True)
-    record.write_text(json.dumps(fields, indent=1) + "\n")
+    atomic_io.write_json(record, fields)
 
 
 def flight(name, step_ms, base=None, throw_step_ms=None):
@@ -293,7 +294,7 @@ def _run(args) -> int:
     summary = summarize(results, args.steps_ms) | {
         "throw_step_ms": args.throw_step_ms,
         "scenario": label}
-    args.out.with_suffix(".json").write_text(json.dumps(summary) + "\n")
+    atomic_io.write_json(args.out.with_suffix(".json"), summary, indent=None)
     _print(summary)
     (_plot_flights if args.flights_only else _plot_maps)(
         summary, args.out.with_suffix(".png"))
@@ -368,7 +369,7 @@ def _plot_maps(summary, path):
                  + (f"; scenario {summary['scenario']}"
                     if summary.get("scenario") else ""), fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    atomic_io.save_figure(fig, path, dpi=100)
     plt.close(fig)
 
 
@@ -394,7 +395,7 @@ def _plot_flights(summary, path):
     fig.suptitle(f"Watching throw at {coarse} ms against {min(steps):g} ms",
                  fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    atomic_io.save_figure(fig, path, dpi=100)
     plt.close(fig)
 
 

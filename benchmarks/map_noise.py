@@ -28,14 +28,14 @@ it finishes; a rerun resumes), the scenario files used there, <out>.json
 # (regrasp_drake/numerics.py), so that results match across x86-64 machines.
 import regrasp_drake  # noqa: F401, I001 (first, see above)
 import argparse
-import json
 import sys
 from pathlib import Path
 
 import map_convergence as study  # beside this script
 import numpy as np
 
-from regrasp_drake import scenario_args
+
+from regrasp_drake import atomic_io, scenario_args
 
 _OBJECTS = ["table1-row4", "table1-row2"]
 _STDS = [1e-4, 1e-3, 1e-2]
@@ -60,9 +60,9 @@ def _write_scenario(directory: Path, scenario, label: str | None = None) -> Path
     whole beside the maps it made."""
     from regrasp_drake.station.scenario import scenario_yaml
     path = directory / "scenario.yaml"
-    path.write_text("# benchmarks/map_noise.py: "
-                    f"{label or 'the shipped scenario'} with release noise.\n"
-                    + scenario_yaml(scenario))
+    atomic_io.write_text(path, "# benchmarks/map_noise.py: "
+                         f"{label or 'the shipped scenario'} with release "
+                         "noise.\n" + scenario_yaml(scenario))
     return path
 
 
@@ -169,7 +169,7 @@ def _run(args) -> int:
     summary = {"step_ms": args.step_ms, "stds_rad_per_s": args.stds,
                "seeds": args.seeds, "scenario": label,
                "objects": summarize(maps, args.stds)}
-    args.out.with_suffix(".json").write_text(json.dumps(summary) + "\n")
+    atomic_io.write_json(args.out.with_suffix(".json"), summary, indent=None)
     _print(summary)
     _plot(summary, args.out.with_suffix(".png"))
     return 0
@@ -210,7 +210,7 @@ def _plot(summary, path):
                  f"step {summary['step_ms']:g} ms", fontsize=9)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    atomic_io.save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 

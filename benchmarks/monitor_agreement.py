@@ -19,6 +19,8 @@ import sys
 from collections import Counter
 from pathlib import Path
 
+from regrasp_drake import atomic_io
+
 
 def agreement(data_dir: Path) -> dict:
     cells_dir = data_dir / "cells"
@@ -74,7 +76,7 @@ def main(argv=None) -> int:
           + (f"; no contact verdict {report['no_contact_verdict']}"
              if report["no_contact_verdict"] else ""))
     args.json.parent.mkdir(parents=True, exist_ok=True)
-    args.json.write_text(json.dumps(report, indent=1) + "\n")
+    atomic_io.write_json(args.json, report)
     return 0
 
 

@@ -58,6 +58,7 @@ import sys
 import time
 from collections import Counter
 from pathlib import Path
+from regrasp_drake import atomic_io
 
 from regrasp_drake import scenario_args
 from regrasp_drake.paths import MODELS_DIR
@@ -318,7 +319,7 @@ def _run(args) -> int:
                 "catch_rate_95": interval and [round(v, 3) for v in interval]})
     summary = {"objects": args.objects, "trials_per_object": args.trials,
                "scenario": label, "curves": curves}
-    args.out.with_suffix(".json").write_text(json.dumps(summary, indent=1) + "\n")
+    atomic_io.write_json(args.out.with_suffix(".json"), summary)
     print(json.dumps(summary, indent=1))
     _plot(curves, args.out.with_suffix(".png"))
     return 0
@@ -351,7 +352,7 @@ def _plot(curves, path):
                  "(bars: 95 % Wilson intervals)", fontsize=10)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    atomic_io.save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 

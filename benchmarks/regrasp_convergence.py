@@ -18,13 +18,13 @@ both outcomes and the achieved grasps' offset difference (mm). Targets
 # (regrasp_drake/numerics.py), so that results match across x86-64 machines.
 import regrasp_drake  # noqa: F401, I001 (first, see above)
 import argparse
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
 import torch
 
+from regrasp_drake import atomic_io
 from regrasp_drake.learning.learning_phase import learn
 from regrasp_drake.learning.offset_prior import OffsetPrior
 from regrasp_drake.learning.table1 import object_names
@@ -104,8 +104,7 @@ def main(argv=None) -> int:
     summary = {"rows": rows, "met": f"{len(met)} of {len(rows)}",
                "targets": {"catch_point_mm": 10.0, "catch_moment_ms": 4.0,
                            "offset_mm": 5.0}}
-    args.out.with_suffix(".json").write_text(json.dumps(summary, indent=1)
-                                             + "\n")
+    atomic_io.write_json(args.out.with_suffix(".json"), summary)
     print(f"{len(met)} of {len(rows)} (object, target) pairs meet all three")
     return 0
 

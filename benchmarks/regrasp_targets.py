@@ -28,6 +28,8 @@ from pathlib import Path
 
 import torch
 
+from regrasp_drake import atomic_io
+from regrasp_drake.map_rows import open_rows, read_rows
 from regrasp_drake.errors import InputError
 from regrasp_drake.learning.flight_predictor import FlightPredictor
 from regrasp_drake.learning.learning_phase import NoCatchPoint, learn
@@ -150,11 +152,12 @@ def main(argv=None) -> int:
                     if args.offset_prior else None)
     ik = ArmIk(base.directives)
     rows_path = args.out.with_suffix(".jsonl")
-    rows = ([json.loads(line) for line in rows_path.read_text().splitlines()
-             if line.strip()] if rows_path.exists() else [])
+
     def row_key(r):
         return (r["object"], r["target"]["kind"], r["target"]["offset_mm"],
                 r["mode"], r.get("level", 0.0), r.get("trial", 0))
+
+    rows = list(read_rows(rows_path, key=row_key).values())
 
     done = {row_key(r) for r in rows}
     jobs = [(target, name, mode, trial) for target in targets
@@ -178,15 +181,14 @@ def main(argv=None) -> int:
             scenario, resolve_object(name=name), model, ik, mode,
             args.max_throws, predictor, offset_prior)
         rows.append(row)
-        with rows_path.open("a") as f:
-            f.write(json.dumps(row) + "\n")
+        with open_rows(rows_path) as f:
+            f.append(json.dumps(row))
         print(f"{target.label()} {mode} {name}: "
               f"{'in target' if row['success'] else row['stopped']}"
               f" after {row['throws']} throws "
               f"{row.get('achieved_grasp')}", flush=True)
     summary = summarize(rows, targets, args.modes, args.noise_level)
-    args.out.with_suffix(".json").write_text(json.dumps(summary, indent=1)
-                                             + "\n")
+    atomic_io.write_json(args.out.with_suffix(".json"), summary)
     print(json.dumps(summary, indent=1))
     return 0
 

@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from regrasp_drake import scenario_args
+from regrasp_drake import atomic_io, scenario_args
 from regrasp_drake.convergence import release_differences
 from regrasp_drake.errors import InputError, check_output_path
 from regrasp_drake.grid import append_rows, read_rows
@@ -195,7 +195,7 @@ def _run(args) -> int:
     summary["settings"] = [describe(scenario), describe(fine_scenario)]
     summary["wall_s"] = [round(sum(r[k]["wall_s"] for r in rows), 2)
                          for k in ("coarse", "fine")]
-    (args.out / "summary.json").write_text(json.dumps(summary, indent=1))
+    atomic_io.write_json((args.out / "summary.json"), summary)
     print(json.dumps(summary, indent=1))
     return 0
 

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from regrasp_drake import atomic_io
 from regrasp_drake.learning.learning_phase import predict
 from regrasp_drake.parameter_space import nearest_cell
 from regrasp_drake.paths import MODELS_DIR
@@ -74,7 +75,7 @@ def main(argv=None) -> int:
         out[name] = {"objects": maps["objects"],
                      "target": figures(maps, model),
                      "any_same_objects": figures(same, model)}
-    args.out.write_text(json.dumps(out, indent=1) + "\n")
+    atomic_io.write_json(args.out, out)
     print(json.dumps(out, indent=1))
     return 0
 

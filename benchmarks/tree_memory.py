@@ -17,6 +17,8 @@ import sys
 import time
 from pathlib import Path
 
+from regrasp_drake import atomic_io
+
 
 def _children() -> dict:
     """pid -> parent pid, for every process."""
@@ -86,7 +88,7 @@ def main(argv=None) -> int:
     print(json.dumps(report, indent=1))
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(report, indent=1) + "\n")
+        atomic_io.write_json(args.json, report)
     return report["returncode"]
 
 

@@ -17,7 +17,7 @@ import sys
 import time
 from pathlib import Path
 
-from regrasp_drake import outputs, scenario_args
+from regrasp_drake import atomic_io, outputs, scenario_args
 from regrasp_drake.errors import (
     InputError,
     note_interrupt,
@@ -93,8 +93,7 @@ def _cmd_catch(args) -> int:
         plot_episode(result, args.plot)
     summary = result.summary() | {"plan": plan.as_dict()}
     print(json.dumps(summary, indent=1))
-    if args.json:
-        args.json.write_text(json.dumps(summary, indent=1) + "\n")
+    _write_json(args.json, summary)
     return 0
 
 
@@ -129,7 +128,7 @@ def _scenario_and_object(args):
 
 def _write_json(path, data) -> None:
     if path:
-        path.write_text(json.dumps(data, indent=1) + "\n")
+        atomic_io.write_json(path, data)
 
 
 def _cmd_throw(args) -> int:
@@ -152,8 +151,8 @@ def _cmd_diagram(args) -> int:
                          "integer >= 1")
     scenario, obj, _, _ = _scenario_and_object(args)
     from regrasp_drake.throw_catch import episode_graphviz
-    args.out.write_text(episode_graphviz(scenario, obj,
-                                         max_depth=args.max_depth))
+    atomic_io.write_text(args.out, episode_graphviz(
+        scenario, obj, max_depth=args.max_depth))
     print(f"diagram: {args.out} (a picture: dot -Tpng {args.out} -o "
           f"{args.out.with_suffix('.png')})")
     return 0
@@ -347,7 +346,7 @@ def _cmd_train(args) -> int:
         from regrasp_drake.learning.train import repeated_splits
         report["repeated_splits"] = repeated_splits(
             data, range(args.seed, args.seed + args.splits))
-        report_json.write_text(json.dumps(report, indent=1) + "\n")
+        _write_json(report_json, report)
     print(json.dumps({k: v for k, v in report.items() if k != "split"},
                      indent=1))
     if not report["held_out"]:

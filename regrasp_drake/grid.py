@@ -9,11 +9,11 @@ line as soon as it is known, and a run resumes from that file.
 
 import json
 import multiprocessing
-import os
 from pathlib import Path
 
 import torch
 
+from regrasp_drake import atomic_io
 from regrasp_drake.episode.branching import run_cells
 from regrasp_drake.errors import InputError, check_interrupt
 from regrasp_drake.input_files import load_json
@@ -61,15 +61,14 @@ def append_rows(function, tasks, path: Path, done: dict, key, *,
                 workers: int, label: str, unit: str) -> None:
     """Runs function(task) for every task in `workers` forked processes and
     appends each result row to the JSON-lines file at path as it finishes
-    (flushed, in the tasks' order), into `done` under key(row) too, with a
+    (fsynced, in the tasks' order), into `done` under key(row) too, with a
     progress bar: a killed run resumes with read_rows(path, key)."""
     ctx = multiprocessing.get_context("fork")
     with (ctx.Pool(workers) as pool, open_rows(path) as f,
           progress_bar(len(tasks), label, unit) as shown):
         for row in pool.imap(function, tasks):
             check_interrupt()
-            f.write(json.dumps(row) + "\n")
-            f.flush()
+            f.append(json.dumps(row))
             done[key(row)] = row
             shown.update()
 
@@ -77,7 +76,7 @@ def append_rows(function, tasks, path: Path, done: dict, key, *,
 def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
             progress=True, only=None) -> dict:
     """Runs every cell of `obj`'s success map not yet in `out` (JSON lines,
-    appended and flushed as each cell finishes); returns {cell: row}.
+    appended and fsynced as each cell finishes); returns {cell: row}.
 
     The cells share one simulated throw up to their triggers (see
     episode/branching.py); `workers` simulations run at once. `only`: a
@@ -92,9 +91,7 @@ def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
           progress_bar(len(todo), obj.name, enabled=progress) as shown):
         def write(i, row):
             row = {"cell": list(todo[i])} | row
-            f.write(json.dumps(row) + "\n")
-            f.flush()
-            os.fsync(f.fileno())
+            f.append(json.dumps(row))
             done[todo[i]] = row
             shown.update()
         run_cells(scenario, obj, ik=ik, X_WG=plan.X_WG,
@@ -110,15 +107,26 @@ def success_map(*, object_name=None, object_file=None, scenario=None,
     `catch_point`-th catch point, resumable. What the rows are computed from
     (the object, the catch point, the scenario's digest and the plan) is
     written beside them (`plan_path`) and must match when a run resumes.
-    scenario: a Scenario (default: the shipped one)."""
+    scenario: a Scenario (default: the shipped one). One run at a time
+    computes a map (map_lock)."""
     torch.set_num_threads(1)
     scenario = scenario or load_scenario()
     obj = resolve_object(name=object_name, file=object_file)
     ik = ArmIk(scenario.directives)
     plan = plan_object(scenario, obj, ik, catch_point)
-    check_resume(out, map_source(scenario, obj, catch_point, plan))
-    return run_map(scenario, obj, ik, plan, out, workers=workers,
-                   progress=progress)
+    with map_lock(out):
+        check_resume(out, map_source(scenario, obj, catch_point, plan))
+        return run_map(scenario, obj, ik, plan, out, workers=workers,
+                       progress=progress)
+
+
+def map_lock(out: Path):
+    """The lock a run holds while it computes the map at `out` (F.lock
+    beside it): a second run on it is refused (atomic_io.LockedError naming
+    the first's pid and host)."""
+    out = Path(out)
+    return atomic_io.exclusive(out.with_name(out.name + ".lock"),
+                               what=f"map {out}", wait=False)
 
 
 def map_source(scenario, obj, catch_point: int, plan) -> dict:
@@ -158,7 +166,7 @@ def check_resume(out: Path, source: dict, flag: str = "--out") -> None:
             f"{flag}: {out} holds cells but no {side.name} saying what they "
             "were computed from, expected a new file or one this command "
             f"began: give another {flag}")
-    side.write_text(json.dumps(source, indent=1) + "\n")
+    atomic_io.write_json(side, source)
 
 
 def ending(row: dict) -> str:

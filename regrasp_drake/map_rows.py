@@ -8,6 +8,7 @@ map before it loads either, so that bad input is refused at once.
 
 from pathlib import Path
 
+from regrasp_drake.atomic_io import RowAppender
 from regrasp_drake.errors import InputError, field_error, quote
 from regrasp_drake.input_files import parse_json, read_text
 from regrasp_drake.parameter_space import is_cell
@@ -54,18 +55,13 @@ def read_rows(path: Path, key=map_key) -> dict:
     return done
 
 
-def open_rows(path: Path):
-    """The JSON-lines file at path, opened to append rows. A last line cut by
-    a kill (no newline at its end) is removed first, so that every line of
-    the file stays a whole row (its work runs again; read_rows would skip
-    it too)."""
-    path = Path(path)
-    if path.exists():
-        data = path.read_bytes()
-        if data and not data.endswith(b"\n"):
-            with path.open("r+b") as f:
-                f.truncate(data.rfind(b"\n") + 1)
-    return path.open("a")
+def open_rows(path: Path) -> RowAppender:
+    """The JSON-lines file at path, opened to append rows (`append(line)`,
+    each fsynced). A last line cut by a kill (no newline at its end) is
+    removed first, and a write that fails is cut back off, so that every
+    line of the file stays a whole row (its work runs again; read_rows
+    would skip it too)."""
+    return RowAppender(path)
 
 
 def plan_path(out: Path) -> Path:

@@ -335,7 +335,8 @@ def _check_dataset_dir(label: str, path: Path) -> None:
     if not path.is_dir() or not any(path.iterdir()):
         return
     if not any((path / name).exists() for name in
-               ("provenance.json", "scenario.yaml", "cells", "plans")):
+               ("provenance.json", "scenario.yaml", "cells", "plans",
+                "dataset.lock")):
         raise InputError(f"{label}: got {quote(str(path))}, an existing "
                          "directory that holds no data set, expected a new "
                          "or empty directory or a data set to resume")

@@ -11,6 +11,7 @@ import numpy as np  # noqa: E402
 from matplotlib.colors import ListedColormap  # noqa: E402
 from matplotlib.patches import Patch, Rectangle  # noqa: E402
 
+from regrasp_drake import atomic_io
 from regrasp_drake.grid import ending, ending_counts  # noqa: E402
 from regrasp_drake.learning.dataset import SHAPE, label_cell  # noqa: E402
 from regrasp_drake.parameter_space import (  # noqa: E402
@@ -52,7 +53,7 @@ def plot_episode(result, path: Path) -> Path:
         _shade_phases(ax, t, logs.phase)
         ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    atomic_io.save_figure(fig, path, dpi=90)
     plt.close(fig)
     return Path(path)
 
@@ -132,6 +133,6 @@ def plot_success_map(rows: dict, path: Path, *, title: str) -> Path:
     ax.set_title(f"{title}\n{counts['caught']} of {len(rows)} cells catch",
                  fontsize=10)
     fig.tight_layout(rect=(0, 0.06 + 0.035 * len(handles), 1, 1))
-    fig.savefig(path, dpi=110)
+    atomic_io.save_figure(fig, path, dpi=110)
     plt.close(fig)
     return Path(path)

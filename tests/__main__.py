@@ -35,6 +35,7 @@ COSTS_S = {
     "tests.test_search": 25.0,
     "tests.test_examples": 20.0,
     "tests.test_replay": 20.0,
+    "tests.test_reliability": 30.0,
 }
 DEFAULT_COST_S = 8.0
 

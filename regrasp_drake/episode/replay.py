@@ -33,6 +33,8 @@ import numpy as np
 from pydrake.geometry import Meshcat, MeshcatParams, Rgba, Sphere
 from pydrake.math import RigidTransform
 
+from regrasp_drake import atomic_io
+
 # Debian's package `chromium` (apt-get install -y chromium).
 CHROMIUM = "/usr/bin/chromium"
 
@@ -159,8 +161,7 @@ def write_html(
         raise ReplayError("Meshcat's static HTML has no </body> to add to")
     overlay = _overlay(views, caption, slow_motion_from_s, slow_motion_scale)
     path = os.fspath(path)
-    with open(path, "w", encoding="utf-8") as f:
-        f.write(page[:end] + overlay + page[end:])
+    atomic_io.write_text(path, page[:end] + overlay + page[end:])
     return path
 
 

@@ -60,7 +60,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from regrasp_drake import grid, numerics
+from regrasp_drake import atomic_io, grid, numerics
 from regrasp_drake.errors import InputError, field_error, quote
 from regrasp_drake.input_files import load_json, parse_yaml, read_text
 from regrasp_drake.learning.search import load_prior_maps
@@ -210,7 +210,8 @@ def generate(names: list[str], out_dir: Path, *, workers: int = 1,
     and provenance.json. Returns the provenance. `only`: a subset of the
     cells (a coarse data set; the cells left out count as not catching).
     scenario: a Scenario (default: the shipped one); the workers get it as
-    data (it pickles as its YAML)."""
+    data (it pickles as its YAML). One run at a time works on a data set
+    (LOCK_FILE in it)."""
     if backend not in ("process", "ray"):
         raise InputError(f"--backend: got {backend!r}, expected process or ray")
     if workers < 1:
@@ -220,6 +221,22 @@ def generate(names: list[str], out_dir: Path, *, workers: int = 1,
     names = entry_names(names, catch_points)
     out_dir = Path(out_dir)
     scenario = scenario or load_scenario()
+    out_dir.mkdir(parents=True, exist_ok=True)
+    with atomic_io.exclusive(out_dir / LOCK_FILE, what=f"data set {out_dir}",
+                             wait=False):
+        return _generate(names, out_dir, workers=workers, backend=backend,
+                         scenario=scenario, progress=progress,
+                         only=only, catch_points=catch_points)
+
+
+# The lock a run holds on its data set directory (a second run on it is
+# refused, naming the first's pid and host).
+LOCK_FILE = "dataset.lock"
+
+
+def _generate(names, out_dir, *, workers, backend, scenario, progress,
+              only, catch_points) -> dict:
+    """generate's work, under the data set's lock."""
     check_same_scenario(out_dir, scenario)
     (out_dir / "cells").mkdir(parents=True, exist_ok=True)
     todo = [n for n in names if not _object_done(out_dir, n, only)]
@@ -289,7 +306,7 @@ def check_same_scenario(out_dir: Path, scenario=None) -> None:
         stored = read_text(started, "scenario YAML file")
     if stored is None:
         out_dir.mkdir(parents=True, exist_ok=True)
-        started.write_text(current)
+        atomic_io.write_text(started, current)
         return
     if stored != current:
         try:
@@ -323,7 +340,7 @@ def _check_same_models(out_dir: Path) -> None:
     else:
         if not (out_dir / "scenario.yaml").exists():  # a new data set
             out_dir.mkdir(parents=True, exist_ok=True)
-            started.write_text(current + "\n")
+            atomic_io.write_text(started, current + "\n")
         return
     if stored is not None and stored != current:
         raise InputError(
@@ -372,11 +389,10 @@ def _remote_entry(scenario, entry, only):
 
 
 def _write_text(path: Path, text: str) -> None:
-    """Writes atomically (a kill leaves the old file or the new one)."""
+    """Writes atomically (a kill leaves the old file or the new one), making
+    its directory."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+    atomic_io.write_text(path, text)
 
 
 def _run_ray(tasks, workers):
@@ -466,13 +482,14 @@ def assemble(names, out_dir: Path, *, scenario=None, wall_s=None,
             "robustness": int(robustness(caught)[cell]),
             "cells_caught": int(caught.sum())})
     usable = [n for n in names if n not in {u["object"] for u in unusable}]
-    np.savez_compressed(out_dir / "maps.npz", objects=np.array(usable),
-                        caught=np.array(maps, bool).reshape(-1, *SHAPE),
-                        features=np.array(features, float).reshape(
-                            -1, len(FEATURE_NAMES)),
-                        feature_names=np.array(FEATURE_NAMES),
-                        h_catch=H_CATCH_VALUES, h_down=H_DOWN_VALUES)
-    with (out_dir / "samples.csv").open("w", newline="") as f:
+    with atomic_io.replace(out_dir / "maps.npz", "wb") as f:
+        np.savez_compressed(f, objects=np.array(usable),
+                            caught=np.array(maps, bool).reshape(-1, *SHAPE),
+                            features=np.array(features, float).reshape(
+                                -1, len(FEATURE_NAMES)),
+                            feature_names=np.array(FEATURE_NAMES),
+                            h_catch=H_CATCH_VALUES, h_down=H_DOWN_VALUES)
+    with atomic_io.replace(out_dir / "samples.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=_SAMPLE_COLUMNS)
         writer.writeheader()
         writer.writerows(samples)

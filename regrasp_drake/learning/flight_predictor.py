@@ -41,7 +41,6 @@ objects that roll about their axis on the palm into everyone's.
 Stored as JSON (numbers only): nothing is unpickled when it is loaded.
 """
 
-import json
 import math
 from pathlib import Path
 
@@ -49,6 +48,7 @@ import numpy as np
 from pydrake.common.eigen_geometry import AngleAxis, Quaternion
 from pydrake.math import RotationMatrix
 
+from regrasp_drake import atomic_io
 from regrasp_drake.errors import InputError, field_error
 from regrasp_drake.input_files import load_json
 from regrasp_drake.planning.free_flight import (
@@ -227,7 +227,7 @@ class FlightPredictor:
     # ---- files ---------------------------------------------------------
     def save(self, path) -> Path:
         path = Path(path)
-        path.write_text(json.dumps(self._d) + "\n")
+        atomic_io.write_json(path, self._d, indent=None)
         return path
 
     @staticmethod
@@ -462,7 +462,7 @@ def train_from_dataset(data_dir, scenario, out, *, ik, eval_objects=(),
               "cross_validation": {"summary": summarize(cv_rows),
                                    "objects": cv_rows},
               "evaluation": {"summary": summarize(rows), "objects": rows}}
-    report_path(out).write_text(json.dumps(report, indent=1) + "\n")
+    atomic_io.write_json(report_path(out), report)
     return report
 
 

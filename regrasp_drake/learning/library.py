@@ -50,13 +50,13 @@ finite numbers).
 
 import dataclasses as dc
 import math
-import os
 from pathlib import Path
 
 import numpy as np
 import yaml
 from pydrake.math import RigidTransform, RotationMatrix
 
+from regrasp_drake import atomic_io
 from regrasp_drake.errors import InputError, field_error
 from regrasp_drake.input_files import load_yaml
 from regrasp_drake.learning.search import SEARCHES
@@ -141,22 +141,29 @@ def load_library(path) -> dict[str, LearnedEntry]:
 
 def save_library(path, entries: dict[str, LearnedEntry]) -> Path:
     """Writes the entries to path (atomically: a reader never sees half a
-    file). Returns path."""
+    file; atomic_io.WriteError when it cannot be written, the old file
+    kept). Returns path."""
     path = Path(path)
     data = {"format": _FORMAT, "version": _VERSION,
             "objects": {name: entries[name].as_dict() for name in sorted(entries)}}
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(yaml.safe_dump(data, sort_keys=False,
-                                  default_flow_style=None, width=100))
-    os.replace(tmp, path)
-    return path
+    return atomic_io.write_text(path, yaml.safe_dump(
+        data, sort_keys=False, default_flow_style=None, width=100))
+
+
+def lock_path(path) -> Path:
+    """The lock file beside a library (L.lock) that its updates hold."""
+    path = Path(path)
+    return path.with_name(path.name + ".lock")
 
 
 def store(path, name: str, entry: LearnedEntry) -> Path:
-    """Adds or replaces the entry of object `name` in the library at path."""
-    entries = load_library(path)
-    entries[name] = entry
-    return save_library(path, entries)
+    """Adds or replaces the entry of object `name` in the library at path,
+    under the library's lock for the whole read-modify-write (runs that
+    store at once wait for each other: none loses another's entry)."""
+    with atomic_io.exclusive(lock_path(path), what=str(path), wait=True):
+        entries = load_library(path)
+        entries[name] = entry
+        return save_library(path, entries)
 
 
 def lookup(path, name: str) -> LearnedEntry:

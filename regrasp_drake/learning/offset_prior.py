@@ -21,8 +21,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from regrasp_drake import atomic_io
 from regrasp_drake.errors import InputError
 from regrasp_drake.learning.learning_phase import NoCatchPoint, learn
+from regrasp_drake.map_rows import open_rows, read_rows
 from regrasp_drake.planning import grasp
 from regrasp_drake.planning.grasp import Target
 from regrasp_drake.planning.ik import ArmIk
@@ -75,8 +77,7 @@ class OffsetPrior:
         return float(m["mean"] + np.asarray(m["weights"]) @ z)
 
     def save(self, path) -> None:
-        Path(path).write_text(json.dumps({"models": self.models}, indent=1)
-                              + "\n")
+        atomic_io.write_json(path, {"models": self.models})
 
     @staticmethod
     def load(path) -> "OffsetPrior":
@@ -154,8 +155,8 @@ def collect(base: Scenario, model, targets, objects, rows_path, *,
     appended as each finishes: a rerun resumes; rows of another scenario
     are refused), on `workers` forked processes. Returns every row."""
     rows_path = Path(rows_path)
-    rows = ([json.loads(line) for line in rows_path.read_text().splitlines()
-             if line.strip()] if rows_path.exists() else [])
+    rows = list(read_rows(rows_path, key=lambda r: (
+        r["object"], r["target"])).values())
     jobs = []
     for target in targets:
         scenario = with_target(base, target)
@@ -172,11 +173,11 @@ def collect(base: Scenario, model, targets, objects, rows_path, *,
             if not old:
                 jobs.append((scenario, model, name, target))
     _JOBS[:] = jobs
-    with multiprocessing.get_context("fork").Pool(workers) as pool:
+    with (multiprocessing.get_context("fork").Pool(workers) as pool,
+          open_rows(rows_path) as f):
         for k, row in enumerate(pool.imap(_one, range(len(jobs)))):
             rows.append(row)
-            with rows_path.open("a") as f:
-                f.write(json.dumps(row) + "\n")
+            f.append(json.dumps(row))
             if progress is not None:
                 print(f"[{k + 1}/{len(jobs)}] {row['target']} "
                       f"{row['object']}: {row['outcome']}, slide "

@@ -10,6 +10,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.patches import Patch, Rectangle  # noqa: E402
 
+from regrasp_drake import atomic_io
 from regrasp_drake.parameter_space import H_CATCH_VALUES, H_DOWN_VALUES  # noqa: E402
 
 OUTCOME_COLOURS = {"caught": "tab:green", "dropped": "tab:red",
@@ -75,7 +76,7 @@ def plot_search(attempts, start_cell, path, *, title: str = "",
                  + "\ncells numbered in the order tried (1: the network's "
                    "cell, throw 2)", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    atomic_io.save_figure(fig, path, dpi=100)
     plt.close(fig)
     return Path(path)
 
@@ -124,7 +125,7 @@ def plot_flight(observation, scenario, path) -> Path:
         a.legend(loc="upper right", fontsize=8)
         a.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    atomic_io.save_figure(fig, path, dpi=90)
     plt.close(fig)
     return Path(path)
 

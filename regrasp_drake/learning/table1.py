@@ -1,13 +1,12 @@
 """The paper's Table 1 reproduced: the learning phase on its five test
 objects with the shipped network, our figures beside the paper's."""
 
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from regrasp_drake import grid
+from regrasp_drake import atomic_io, grid
 from regrasp_drake.learning.learning_phase import NoCatchPoint, learn
 from regrasp_drake.learning.library import load_library
 from regrasp_drake.learning.plots import plot_search
@@ -110,11 +109,12 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
             rows_path, png_path = map_paths(maps_dir, obj.name)
             # What the rows are computed from, beside them (as `grid`
             # keeps it): a rerun resumes only the same map.
-            grid.check_resume(rows_path, grid.map_source(
-                scenario, obj, 1, result.plan), flag="--maps-dir")
-            cells = grid.run_map(scenario, obj, ik, result.plan, rows_path,
-                                 workers=map_workers,
-                                 progress=progress is not None)
+            with grid.map_lock(rows_path):
+                grid.check_resume(rows_path, grid.map_source(
+                    scenario, obj, 1, result.plan), flag="--maps-dir")
+                cells = grid.run_map(scenario, obj, ik, result.plan,
+                                     rows_path, workers=map_workers,
+                                     progress=progress is not None)
             entry["cells_caught"] = sum(r["outcome"] == "caught"
                                         for r in cells.values())
             png = plot_search(result.search_attempts, result.start_cell,
@@ -197,6 +197,6 @@ def format_markdown(rows: list[dict]) -> str:
 
 def write_outputs(rows, json_path=None, markdown_path=None) -> None:
     if json_path is not None:
-        Path(json_path).write_text(json.dumps(rows, indent=1) + "\n")
+        atomic_io.write_json(json_path, rows)
     if markdown_path is not None:
-        Path(markdown_path).write_text(format_markdown(rows) + "\n")
+        atomic_io.write_text(markdown_path, format_markdown(rows) + "\n")

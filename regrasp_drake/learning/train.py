@@ -15,12 +15,12 @@ against two baselines: the single cell that catches the most training
 objects, used for every object; and the mean of the training labels.
 """
 
-import json
 from pathlib import Path
 
 import numpy as np
 import torch
 
+from regrasp_drake import atomic_io
 from regrasp_drake.errors import InputError
 from regrasp_drake.learning.dataset import (
     FEATURE_NAMES,
@@ -120,7 +120,7 @@ def train(data_dir: Path, out: Path, *, seed: int = 0, epochs: int = 3000,
     out.parent.mkdir(parents=True, exist_ok=True)
     save_weights(out, model, metadata)
     if report_json is not None:
-        Path(report_json).write_text(json.dumps(report, indent=1) + "\n")
+        atomic_io.write_json(report_json, report)
     if curve_png is not None:
         _plot_curve(curve, best_epoch, curve_png)
     return report
@@ -232,5 +232,5 @@ def _plot_curve(curve, best_epoch, path):
     ax.legend()
     ax.set_title("Catch network training")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    atomic_io.save_figure(fig, path, dpi=110)
     plt.close(fig)

@@ -24,6 +24,7 @@ import numpy as np
 import torch
 from pydrake.systems.framework import LeafSystem
 
+from regrasp_drake import atomic_io
 from regrasp_drake.errors import InputError, field_error
 from regrasp_drake.input_files import read_bytes
 
@@ -89,15 +90,17 @@ def save_weights(path, model: CatchMlp, metadata: dict):
     state = {
         k: v.detach().to(torch.float64).clone() for k, v in model.state_dict().items()
     }
-    torch.save(
-        {
-            "format": _FORMAT,
-            "version": _FORMAT_VERSION,
-            "state_dict": state,
-            "metadata": metadata,
-        },
-        os.fspath(path),
-    )
+    # Atomically: a train killed mid-write leaves the old weights whole.
+    with atomic_io.replace(path, "wb") as f:
+        torch.save(
+            {
+                "format": _FORMAT,
+                "version": _FORMAT_VERSION,
+                "state_dict": state,
+                "metadata": metadata,
+            },
+            f,
+        )
 
 
 def load_weights(path) -> tuple[CatchMlp, dict]:
