@@ -34,7 +34,7 @@ from pathlib import Path
 from unittest import mock
 
 import numpy as np
-from regrasp_drake.station.replay import make_meshcat, write_html
+from regrasp_drake.episode.replay import make_meshcat, write_html
 
 from regrasp_drake import atomic_io, cli
 from regrasp_drake.atomic_io import WriteError
