@@ -113,8 +113,8 @@ def success_map(*, object_name=None, object_file=None, scenario=None,
     scenario = scenario or load_scenario()
     obj = resolve_object(name=object_name, file=object_file)
     ik = ArmIk(scenario.directives)
-    plan = plan_object(scenario, obj, ik, catch_point)
-    with map_lock(out):
+    with map_lock(out):  # before the watching throw: a refusal is at once
+        plan = plan_object(scenario, obj, ik, catch_point)
         check_resume(out, map_source(scenario, obj, catch_point, plan))
         return run_map(scenario, obj, ik, plan, out, workers=workers,
                        progress=progress)

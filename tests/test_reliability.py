@@ -25,6 +25,7 @@ import random
 import resource
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import tempfile
@@ -125,6 +126,27 @@ class ConcurrentTest(unittest.TestCase):
         self.assertEqual([c for c, _ in codes], [0] * len(LEARNED),
                          [e[-300:] for _, e in codes])
         self.assertEqual(kept, sorted(LEARNED))
+
+
+    def test_a_second_driver_of_a_data_set_or_map_is_refused(self):
+        """While a run holds a data set's (or a map's) lock, `dataset` (or
+        `grid`) on it is refused: one line naming the holder, exit 2."""
+        data, rows = self.dir / "data", self.dir / "grid.jsonl"
+        data.mkdir()
+        for argv, lock in (
+                (["dataset", "--objects", "can-d100-1", "--out", str(data)],
+                 data / dataset.LOCK_FILE),
+                (["grid", "--object", "can-d100-1", "--scenario-name", "Fast",
+                  "--out", str(rows)], rows.with_name(rows.name + ".lock"))):
+            with atomic_io.exclusive(lock, what="x", wait=False):
+                result = subprocess.run(
+                    [sys.executable, "-m", "regrasp_drake.cli", *argv],
+                    capture_output=True, text=True, timeout=600)
+            self.assertEqual(result.returncode, 2, result.stderr[-500:])
+            lines = result.stderr.splitlines()
+            self.assertEqual(len(lines), 1, result.stderr[-500:])
+            self.assertIn(f"in use by pid {os.getpid()} on host "
+                          f"{socket.gethostname()}", lines[0])
 
 
 class KilledWriterTest(unittest.TestCase):
