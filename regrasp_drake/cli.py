@@ -7,6 +7,10 @@ overwritten. Outputs given no path go to --out-dir (default paths.OUT_DIR,
 out/ at the top of the repository). Ctrl-C ends a command with one line and
 exit status 130; what it has written so far (a map's rows, a data set's
 entries) is kept and resumed by the next run.
+
+Over 500 lines because it holds the thirteen commands, each a short function
+of its own, and their parser; what they write and the checks of it are in
+outputs.py, the scenario's options in scenario_args.py.
 """
 
 import argparse

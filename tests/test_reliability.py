@@ -35,10 +35,10 @@ from pathlib import Path
 from unittest import mock
 
 import numpy as np
-from regrasp_drake.episode.replay import make_meshcat, write_html
 
 from regrasp_drake import atomic_io, cli
 from regrasp_drake.atomic_io import WriteError
+from regrasp_drake.episode.replay import make_meshcat, write_html
 from regrasp_drake.grid import check_resume
 from regrasp_drake.learning import dataset
 from regrasp_drake.learning.flight_predictor import FlightPredictor

@@ -44,6 +44,11 @@ parameter space; the label cell in the grid; robustness an integer
 0 … 15; cells_caught an integer 1 … 150. The files are read within the
 limits of regrasp_drake/input_files.py (size, nesting, duplicate keys,
 finite numbers); maps.npz as learning/search.py's load_prior_maps reads it.
+
+Over 500 lines: a data set's whole life (its entries computed on processes
+or Ray, resumed under its lock, its provenance checked, then assembled
+into labels and loaded for training) shares its file layout; splitting it
+along those steps is the next clean-up.
 """
 
 import csv

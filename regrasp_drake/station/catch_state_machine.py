@@ -42,6 +42,9 @@ update runs at the sensors' rate and makes the transitions only; the
 reference output ports are then computed from the time, so that the
 integrator, which chooses its own steps, sees smooth references rather
 than a hold.
+
+Over 500 lines because it is one LeafSystem: the phases of Fig. 9 and the
+arm's and fingers' references each phase commands, which share its state.
 """
 
 import dataclasses as dc
