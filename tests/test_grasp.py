@@ -198,8 +198,10 @@ class TargetInProvenanceTest(unittest.TestCase):
                                  scenario=with_target(base, target),
                                  progress=False)
                     self.assertIn(f"--scenario: {field} is", str(e.exception))
+            # Nothing computed; the lock the runs took stays (its holder
+            # file is gone).
             self.assertEqual(sorted(p.name for p in old.iterdir()),
-                             ["scenario.yaml"])
+                             ["dataset.lock", "scenario.yaml"])
 
 
 if __name__ == "__main__":
