@@ -28,7 +28,7 @@ import numpy as np
 from regrasp_drake import atomic_io
 from regrasp_drake.errors import InputError, check_output_path
 from regrasp_drake.grid import ending, read_rows
-from regrasp_drake.learning.dataset import git_version
+from regrasp_drake.learning.provenance import git_version
 from regrasp_drake.paths import MODELS_DIR, REPO_DIR
 
 HERE = Path(__file__).parent

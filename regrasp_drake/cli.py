@@ -334,7 +334,7 @@ def _cmd_train(args) -> int:
                          ">= 1")
     if args.seed < 0:
         raise InputError(f"--seed: got {args.seed}, expected an integer >= 0")
-    from regrasp_drake.learning.dataset import load_training_data  # torch
+    from regrasp_drake.learning.dataset_files import load_training_data  # torch
     from regrasp_drake.paths import MODELS_DIR
     data = args.data or MODELS_DIR / "dataset"
     load_training_data(data)  # refuse a bad data set before any training

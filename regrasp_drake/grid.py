@@ -89,8 +89,8 @@ def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
         return done
     with (open_rows(out) as f,
           progress_bar(len(todo), obj.name, enabled=progress) as shown):
-        def write(i, row):
-            row = {"cell": list(todo[i])} | row
+        def write(i, result):
+            row = {"cell": list(todo[i])} | result.cell_row()
             f.append(json.dumps(row))
             done[todo[i]] = row
             shown.update()

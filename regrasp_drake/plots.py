@@ -13,7 +13,7 @@ from matplotlib.patches import Patch, Rectangle  # noqa: E402
 
 from regrasp_drake import atomic_io
 from regrasp_drake.grid import ending, ending_counts  # noqa: E402
-from regrasp_drake.learning.dataset import SHAPE, label_cell  # noqa: E402
+from regrasp_drake.learning.labels import SHAPE, label_cell  # noqa: E402
 from regrasp_drake.parameter_space import (  # noqa: E402
     ENDINGS,
     H_CATCH_VALUES,
@@ -115,7 +115,7 @@ def ending_legend(keys=None, extra=()) -> list:
 def plot_success_map(rows: dict, path: Path, *, title: str) -> Path:
     """`regrasp-drake grid --plot`: one map coloured by ending, its label
     (the data set's rule: the catching cell farthest from any failed cell,
-    learning/dataset.label_cell) framed, with the count of each ending."""
+    learning/labels.label_cell) framed, with the count of each ending."""
     counts = ending_counts(rows.values())
     fig, ax = plt.subplots(figsize=(7.5, 6.2))
     caught = np.zeros(SHAPE, bool)

@@ -16,15 +16,10 @@ from pathlib import Path
 import numpy as np
 
 from regrasp_drake.errors import InputError
-from regrasp_drake.learning.dataset import (
-    FEATURE_NAMES,
-    SHAPE,
-    generate,
-    label_cell,
-    load_map,
-    robustness,
-    scenario_text,
-)
+from regrasp_drake.learning.dataset import generate
+from regrasp_drake.learning.dataset_files import FEATURE_NAMES, load_map
+from regrasp_drake.learning.labels import SHAPE, label_cell, robustness
+from regrasp_drake.learning.provenance import scenario_text
 from regrasp_drake.station.scenario import load_scenario, scenario_yaml
 
 REPO = Path(__file__).parents[1]
@@ -144,7 +139,7 @@ class OldPhysicsTest(unittest.TestCase):
         # by path only; its robot_models.sha256 not sdf/'s digest now) is
         # refused before any simulation, naming sdf/ and both digests, and
         # what it holds is left as it was.
-        from regrasp_drake.learning.dataset import robot_models_digest
+        from regrasp_drake.learning.provenance import robot_models_digest
         old = Path(self.tmp.name) / "other_hand"
         (old / "cells").mkdir(parents=True)
         text = scenario_yaml(load_scenario())

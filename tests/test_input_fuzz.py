@@ -37,7 +37,11 @@ import yaml
 from regrasp_drake.errors import InputError
 from regrasp_drake.grid import read_rows
 from regrasp_drake.input_files import dump_yaml, parse_yaml
-from regrasp_drake.learning.dataset import _read_plan, load_provenance, load_samples
+from regrasp_drake.learning.dataset_files import (
+    load_provenance,
+    load_samples,
+    read_plan,
+)
 from regrasp_drake.learning.flight_predictor import FlightPredictor, dataset_flights
 from regrasp_drake.learning.library import load_library
 from regrasp_drake.learning.search import load_prior_maps
@@ -408,7 +412,7 @@ def _outcome(load, path: Path) -> tuple[str | None, bool]:
 
 def _load_plan(path: Path) -> None:
     """An entry's plan, as `dataset` (resuming) and `train-flight` read it."""
-    _read_plan(path)
+    read_plan(path)
     dataset_flights(path.parents[1])
 
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from regrasp_drake.cli import make_parser
 from regrasp_drake.errors import InputError
-from regrasp_drake.learning.dataset import object_of
+from regrasp_drake.learning.dataset_files import object_of
 from regrasp_drake.learning.search import (
     FEATURE_SIGMA,
     MapPrior,

@@ -9,7 +9,8 @@ import numpy as np
 import torch
 from pydrake.math import RigidTransform
 
-from regrasp_drake.episode.run import THROWS, Logs, run_episode
+from regrasp_drake import memo
+from regrasp_drake.episode.run import THROWS, Logs, ThrowCache, run_episode
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.scenario import ThrowNoise, load_scenario
 from regrasp_drake.throw_catch import plan_catch
@@ -61,6 +62,33 @@ class ThrowCacheTest(unittest.TestCase):
                         getattr(b.logs, field.name), err_msg=field.name)
         # The reused catch skipped the throw's simulation.
         self.assertLess(reused[1].wall_s, fresh[1].wall_s)
+
+    def test_a_cache_the_caller_owns(self):
+        # The caller's own cache keeps the throw; the process's stays empty.
+        THROWS.clear()
+        hits = THROWS.hits
+        mine = ThrowCache()
+        parameters = (0.28, -0.12)
+        watched = run_episode(self.scenario, self.obj, ik=self.ik, X_WG=None,
+                              throws=mine)
+        X_WG = plan_catch(self.scenario, self.obj, self.ik, watched).X_WG
+        first = run_episode(self.scenario, self.obj, ik=self.ik, X_WG=X_WG,
+                            catch_parameters=parameters, throws=mine)
+        self.assertEqual((mine.hits, THROWS.hits - hits, len(THROWS._kept)),
+                         (1, 0, 0))
+        # Every cache of the package is listed, and clearing them all makes
+        # the next episode compute everything again: the same episode.
+        self.assertEqual(set(memo.caches()),
+                         {"start poses", "rest poses", "throws"})
+        self.assertGreater(len(memo.caches()["start poses"]), 0)
+        mine.clear()
+        memo.clear_all()
+        self.assertEqual(len(memo.caches()["start poses"]), 0)
+        again = run_episode(self.scenario, self.obj, ik=self.ik, X_WG=X_WG,
+                            catch_parameters=parameters, throws=mine)
+        self.assertEqual(mine.hits, 1)  # simulated from the start
+        self.assertEqual((first.outcome, first.p_WO_final),
+                         (again.outcome, again.p_WO_final))
 
     def test_noisy_throws_are_their_own(self):
         noisy = dc.replace(self.scenario, throw=dc.replace(

@@ -21,6 +21,7 @@ The result of each cell is the result that `run_episode` gives for it (the
 tests compare them): this only skips recomputing the shared part.
 """
 
+import dataclasses as dc
 import os
 import pickle
 import signal
@@ -30,11 +31,11 @@ import numpy as np
 
 from regrasp_drake.episode.run import (
     THROWS,
+    EpisodeResult,
     advance_to_outcome,
     hand_over,
-    judge_grasp,
-    read_ending,
     read_outcome,
+    read_result,
     start_grasp,
 )
 from regrasp_drake.errors import check_interrupt
@@ -46,19 +47,17 @@ from regrasp_drake.station.station import (
 
 
 def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
-              on_result=None) -> list[dict]:
+              on_result=None, throws=None) -> list[EpisodeResult]:
     """Runs one catch episode per (h_catch, h_down) in `parameters`.
 
-    Returns one dict per entry, in order: h_catch, h_down, outcome,
-    sim_time_s, catch_time_s, message, wall_s (the child's wall time, or the
-    shared run's for cells that never triggered), p_WO_final (the object's
-    final position, m), drop_reason, touching, held_by_contact, slip_m_per_s
-    and spin_rad_per_s (episode.read_ending).
-    `on_result(i, row)` is called as each cell finishes. At most `workers`
+    Returns one EpisodeResult per entry, in order, as `run_episode` gives
+    it but without logs (episode.read_result); its wall_s is the child's
+    wall time, or the shared run's for cells that never triggered.
+    `on_result(i, result)` is called as each cell finishes. At most `workers`
     children run at once.
     With a catch step of its own (scenario.catch_time_step_s), the shared
     run is handed over to it at the release time (episode.hand_over), as
-    `run_episode`'s.
+    `run_episode`'s; `throws` as run_episode's (default: THROWS).
     """
     t0 = time.perf_counter()
     start = start_grasp(scenario, obj)
@@ -70,14 +69,15 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
 
     # The throw to the release, simulated before by the watching throw
     # the plan came from (episode.ThrowCache), or simulated here and kept.
-    key = THROWS.key(scenario, obj, 1, (0.0, 0.0), None)
-    handover = THROWS.resume(key, rebuild, X_WG, (0.0, 0.0), ik)
+    throws = THROWS if throws is None else throws
+    key = throws.key(scenario, obj, 1, (0.0, 0.0), None)
+    handover = throws.resume(key, rebuild, X_WG, (0.0, 0.0), ik)
     if handover is None:
         episode = build_episode_diagram(scenario, obj, ik=ik, X_WG=X_WG,
                                         catch_parameters=(0.0, 0.0))
         handover = hand_over(initialize(episode, scenario), episode,
                              scenario, rebuild)
-        THROWS.keep(key, handover)
+        throws.keep(key, handover)
     simulator, episode, scenario = handover.now
     if handover.before is not None:
         machine = episode.controller.state_machine
@@ -86,13 +86,11 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
         if phase >= Phase.WAIT:
             raise ValueError("the hand already waits at the release time "
                              "(a cell may have triggered)")
-    source = episode.controller.parameters
     ir_levels = episode.station.GetOutputPort("ir_levels")
     machine = episode.controller.state_machine
     context = simulator.get_mutable_context()
     ir_context = ir_levels.get_system().GetMyContextFromRoot(context)
     machine_context = machine.GetMyContextFromRoot(context)
-    source_context = source.GetMyMutableContextFromRoot(context)
 
     rows = [None] * len(parameters)
     waiting = sorted({h for h, _ in parameters}, reverse=True)
@@ -110,21 +108,17 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
         os.close(fd)
         del children[pid]
         check_interrupt()
-        if not data:
-            message = "the simulation process died"
-            results = [dict(outcome="failed", sim_time_s=None,
-                            catch_time_s=None, message=message, wall_s=None,
-                            p_WO_final=None, drop_reason=None, touching=None,
-                            held_by_contact=None, slip_m_per_s=None,
-                            spin_rad_per_s=None, target=None,
-                            start_grasp=None, achieved_grasp=None,
-                            grasp_error=None)
-                       for _ in indices]
+        if data:
+            result = pickle.loads(data)
         else:
-            results = pickle.loads(data)
-        for i, result in zip(indices, results):
-            rows[i] = {"h_catch": parameters[i][0],
-                       "h_down": parameters[i][1]} | result
+            result = EpisodeResult(
+                object=obj.name, outcome="failed", h_catch=None,
+                h_down=None, sim_time_s=None, wall_s=None, build_s=0.0,
+                catch_time_s=None, message="the simulation process died",
+                logs=None)
+        for i in indices:
+            h_catch, h_down = parameters[i]
+            rows[i] = dc.replace(result, h_catch=h_catch, h_down=h_down)
             if on_result is not None:
                 on_result(i, rows[i])
 
@@ -145,10 +139,9 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
                 signal.pthread_sigmask(signal.SIG_SETMASK, mask)
                 os.close(read_fd)
                 result = _run_child(simulator, episode, scenario, obj,
-                                    start, source, source_context,
-                                    parameters[group[0]], t_final)
+                                    start, parameters[group[0]], t_final)
                 with os.fdopen(write_fd, "wb") as f:
-                    f.write(pickle.dumps([result] * len(group)))
+                    f.write(pickle.dumps(result))
             finally:
                 os._exit(0)
         os.close(write_fd)
@@ -188,11 +181,13 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
                     and read_outcome(episode, context, "")[0] == "running"):
                 message = advance_to_outcome(simulator, episode, scenario,
                                              t_final)
-            shared = _row(episode, context, scenario, obj, start, message,
-                          t0)
+            shared = read_result(
+                episode, context, scenario, obj, start, message=message,
+                h_catch=None, h_down=None,
+                wall_s=time.perf_counter() - t0)
             for i, (h, d) in enumerate(parameters):
                 if h in waiting:
-                    rows[i] = {"h_catch": h, "h_down": d} | shared
+                    rows[i] = dc.replace(shared, h_catch=h, h_down=d)
                     if on_result is not None:
                         on_result(i, rows[i])
         while children:
@@ -213,32 +208,15 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
     return rows
 
 
-def _run_child(simulator, episode, scenario, obj, start, source,
-               source_context, cell_parameters, t_final) -> dict:
+def _run_child(simulator, episode, scenario, obj, start, cell_parameters,
+               t_final) -> EpisodeResult:
+    """In a forked child: the cell's parameters set, its episode run on
+    from the parent's state to its outcome."""
     t0 = time.perf_counter()
-    source.get_mutable_source_value(source_context).SetFromVector(
-        list(cell_parameters))
+    context = simulator.get_mutable_context()
+    episode.controller.set_task(context, catch_parameters=cell_parameters)
     message = advance_to_outcome(simulator, episode, scenario, t_final)
-    return _row(episode, simulator.get_context(), scenario, obj, start,
-                message, t0)
-
-
-def _row(episode, context, scenario, obj, start, message, t0) -> dict:
-    """A cell's result from its episode's final context."""
-    outcome, grasp_t = read_outcome(episode, context, message)
-    ending = read_ending(episode, context, outcome)
-    outcome, grasp_fields = judge_grasp(scenario, obj, episode, context,
-                                        outcome, start)
-    return dict(outcome=outcome, sim_time_s=round(context.get_time(), 4),
-                catch_time_s=grasp_t, message=message,
-                wall_s=round(time.perf_counter() - t0, 3),
-                p_WO_final=_object_position(episode, context),
-                **ending, **grasp_fields)
-
-
-def _object_position(episode, context) -> list:
-    """The object's final position (m), unrounded: it shows any difference."""
-    station = episode.station
-    plant_context = station.plant.GetMyContextFromRoot(context)
-    return station.plant.EvalBodyPoseInWorld(
-        plant_context, station.object_body).translation().tolist()
+    h_catch, h_down = cell_parameters
+    return read_result(episode, context, scenario, obj, start,
+                       message=message, h_catch=h_catch, h_down=h_down,
+                       wall_s=time.perf_counter() - t0)

@@ -9,6 +9,7 @@ import time
 import numpy as np
 from pydrake.math import RigidTransform
 
+from regrasp_drake import memo
 from regrasp_drake.parameter_space import HELD_OUTCOMES
 from regrasp_drake.planning import grasp
 from regrasp_drake.planning.ik import ArmIk
@@ -56,9 +57,10 @@ class EpisodeResult:
     outcome: str            # caught | dropped | timeout | landed | failed
     h_catch: float | None
     h_down: float | None
-    sim_time_s: float
-    wall_s: float
-    build_s: float
+    # None only for a forked cell whose process died (branching.run_cells).
+    sim_time_s: float | None
+    wall_s: float | None
+    build_s: float          # 0 for a forked cell: it builds nothing
     catch_time_s: float | None  # when the grasp was recognized, [s]
     message: str
     logs: Logs | None
@@ -108,13 +110,40 @@ class EpisodeResult:
             "held_by_contact": self.held_by_contact,
         }
 
+    def cell_row(self) -> dict:
+        """The row a success map keeps of a cell (grid.run_map): JSON, its
+        times rounded (0.1 ms simulated, 1 ms wall), the object's final
+        position unrounded (it shows any difference)."""
+        return {
+            "h_catch": self.h_catch, "h_down": self.h_down,
+            "outcome": self.outcome,
+            "sim_time_s": _rounded(self.sim_time_s, 4),
+            "catch_time_s": self.catch_time_s, "message": self.message,
+            "wall_s": _rounded(self.wall_s, 3),
+            "p_WO_final": self.p_WO_final,
+            "drop_reason": self.drop_reason, "touching": self.touching,
+            "held_by_contact": self.held_by_contact,
+            "slip_m_per_s": self.slip_m_per_s,
+            "spin_rad_per_s": self.spin_rad_per_s,
+            "target": self.target, "start_grasp": self.start_grasp,
+            "achieved_grasp": self.achieved_grasp,
+            "grasp_error": self.grasp_error,
+        }
+
+
+def _rounded(value: float | None, digits: int) -> float | None:
+    return None if value is None else round(value, digits)
+
 
 def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
                 X_WG: RigidTransform | None, catch_parameters=None,
                 mlp_features=None, meshcat=None,
-                throw_number: int = 1, at_release=None) -> EpisodeResult:
+                throw_number: int = 1, at_release=None,
+                throws: "ThrowCache | None" = None) -> EpisodeResult:
     """Throws `obj` and, unless X_WG is None (a watching throw), catches it.
     throw_number seeds the release noise, if the scenario has any.
+    throws: the cache of throws simulated to their release this episode
+    goes on from and keeps its throw in (default: the process's, THROWS).
 
     at_release: plans the catch while the object flies. Called once, when
     the throw ends (`release_time`, before the state machine reads the grasp
@@ -136,8 +165,9 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
 
     catch_parameters = fixed_catch_parameters(scenario, X_WG,
                                               catch_parameters)
-    key = THROWS.key(scenario, obj, throw_number, catch_parameters, meshcat)
-    handover = THROWS.resume(key, rebuild, X_WG, catch_parameters, ik)
+    throws = THROWS if throws is None else throws
+    key = throws.key(scenario, obj, throw_number, catch_parameters, meshcat)
+    handover = throws.resume(key, rebuild, X_WG, catch_parameters, ik)
     if handover is not None:  # this throw's release, simulated before
         build_s = time.perf_counter() - t0
     else:
@@ -150,7 +180,7 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
         simulator = initialize(episode, scenario)
         build_s = time.perf_counter() - t0
         handover = hand_over(simulator, episode, scenario, rebuild)
-        THROWS.keep(key, handover)
+        throws.keep(key, handover)
     simulator, episode, scenario = handover.now
     message = handover.message
     if handover.running:
@@ -167,17 +197,32 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
         meshcat.StopRecording()
         meshcat.PublishRecording()
     context = simulator.get_context()
+    logs = handover.logs(_read_logs(episode.loggers, context))
+    h = logs.params[:, -1] if logs.params.shape[1] else (None, None)
+    return read_result(
+        episode, context, scenario, obj, start, message=message,
+        h_catch=None if X_WG is None else float(h[0]),
+        h_down=None if X_WG is None else float(h[1]),
+        wall_s=wall_s, build_s=build_s, logs=logs)
+
+
+def read_result(episode: EpisodeDiagram, context, scenario: Scenario,
+                obj: ObjectSpec, start: grasp.Grasp, *, message: str,
+                h_catch: float | None, h_down: float | None, wall_s: float,
+                build_s: float = 0.0, logs: Logs | None = None
+                ) -> EpisodeResult:
+    """The result of the episode that ended in `context` (its simulator's,
+    at the end) with `message` (advance_to_outcome's): its outcome, how it
+    ended (read_ending) and the grasp against the scenario's target
+    (judge_grasp). The one reader of an episode's end, for `run_episode`
+    and for every forked cell (branching.run_cells)."""
     outcome, grasp_t = read_outcome(episode, context, message)
     ending = read_ending(episode, context, outcome)
     outcome, grasp_fields = judge_grasp(scenario, obj, episode, context,
                                         outcome, start)
-    logs = handover.logs(_read_logs(episode.loggers, context))
     station = episode.station
-    h = logs.params[:, -1] if logs.params.shape[1] else (None, None)
     return EpisodeResult(
-        object=obj.name, outcome=outcome,
-        h_catch=None if X_WG is None else float(h[0]),
-        h_down=None if X_WG is None else float(h[1]),
+        object=obj.name, outcome=outcome, h_catch=h_catch, h_down=h_down,
         sim_time_s=context.get_time(), wall_s=wall_s, build_s=build_s,
         catch_time_s=grasp_t, message=message, logs=logs,
         p_WO_final=station.plant.EvalBodyPoseInWorld(
@@ -310,8 +355,9 @@ class ThrowCache:
     later one builds its catch's diagram and goes on from that state
     (`station.continue_with`, which copies it), with its own grasp pose and
     parameters set: the same episode bit for bit (tested), without the
-    throw's 3 280 steps of 0.25 ms. Kept per process, for the last
-    `size` throws; only for scenarios handed over at the release time
+    throw's 3 280 steps of 0.25 ms. Kept for the last `size` throws, in
+    the process's cache THROWS (listed in memo.caches()) unless the caller
+    passes its own; only for scenarios handed over at the release time
     (catch_time_step_s), fixed catch parameters and no Meshcat (which
     must record the throw). A throw with release noise is its own (the
     perturbation is part of the key). `enabled = False` turns it off."""
@@ -363,14 +409,10 @@ class ThrowCache:
         other = built[1]
         target = continue_with(simulator, episode, other, later)
         # continue_with copied the kept throw's pose and parameters.
-        context = target.get_mutable_context()
-        grasp = other.controller.grasp_pose
-        grasp.set_pose(grasp.GetMyMutableContextFromRoot(context),
-                       X_WG if X_WG is not None else RigidTransform())
-        source = other.controller.parameters
-        source.get_mutable_source_value(
-            source.GetMyMutableContextFromRoot(context)).SetFromVector(
-            list(catch_parameters))
+        other.controller.set_task(
+            target.get_mutable_context(),
+            X_WG=X_WG if X_WG is not None else RigidTransform(),
+            catch_parameters=catch_parameters)
         self.hits += 1
         return Handover((target, other, later), (simulator, episode), "",
                         True, tuple(float(p) for p in catch_parameters))
@@ -381,6 +423,7 @@ class ThrowCache:
 
 
 THROWS = ThrowCache()
+memo.register("throws", THROWS)
 
 
 def _plan_at_release(simulator, episode: EpisodeDiagram, scenario,
@@ -400,12 +443,7 @@ def _plan_at_release(simulator, episode: EpisodeDiagram, scenario,
     if planned is None:
         return
     X_WG, parameters = planned
-    grasp = controller.grasp_pose
-    grasp.set_pose(grasp.GetMyMutableContextFromRoot(context), X_WG)
-    source = controller.parameters
-    source.get_mutable_source_value(
-        source.GetMyMutableContextFromRoot(context)).SetFromVector(
-        list(parameters))
+    controller.set_task(context, X_WG=X_WG, catch_parameters=parameters)
 
 
 def advance_to_outcome(simulator, episode: EpisodeDiagram, scenario,
@@ -482,4 +520,5 @@ def _read_logs(loggers: Loggers, context) -> Logs:
                 arm_state=log(loggers.arm), params=log(loggers.params))
 
 
-__all__ = ["EpisodeResult", "Logs", "Outcome", "run_episode"]
+__all__ = ["EpisodeResult", "Logs", "Outcome", "read_result",
+           "run_episode"]

@@ -86,7 +86,7 @@ Cell = tuple[int, int]  # (i_catch, i_down): indices into H_*_VALUES
 SHAPE = (len(H_CATCH_VALUES), len(H_DOWN_VALUES))  # (i_catch, i_down)
 
 SEARCHES = ("wavefront", "map-prior")  # the learning phase's `search`
-NUM_FEATURES = 5  # the network's inputs (dataset.FEATURE_NAMES)
+NUM_FEATURES = 5  # the network's inputs (dataset_files.FEATURE_NAMES)
 PRIOR_MAPS_PATH = MODELS_DIR / "dataset" / "maps.npz"  # the shipped prior
 # The map-prior search's constants (see the module's docstring):
 EPS = 0.2            # chance that a cell's outcome contradicts a map, [1]
@@ -131,7 +131,7 @@ def wavefront_order(start_cell: Cell) -> list[Cell]:
 def load_prior_maps(path=PRIOR_MAPS_PATH, *, with_features: bool = False):
     """The training success maps of a data set's maps.npz (`regrasp-drake
     dataset`): the entry names (`<object>` or `<object>@k`, see
-    learning/dataset.py) and the maps, a boolean array (entries, 10, 15)
+    learning/dataset_files.py) and the maps, a boolean array (entries, 10, 15)
     indexed (entry, i_catch, i_down), True where the cell catches; with
     `with_features`, also the entries' network features (entries, 5), or
     None for a file written without them. A missing or malformed file is

@@ -22,7 +22,7 @@ import torch
 
 from regrasp_drake import atomic_io
 from regrasp_drake.errors import InputError
-from regrasp_drake.learning.dataset import (
+from regrasp_drake.learning.dataset_files import (
     FEATURE_NAMES,
     load_training_data,
     object_of,

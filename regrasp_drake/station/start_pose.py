@@ -1,7 +1,8 @@
 """Where every episode starts: the arm at the throw's start pose, the hand
 open, the object lying in the palm; for the palm toss, at its rest there,
 found by dynamic relaxation (`rest_pose`). Computed once per scenario and
-object in a process (the caches below: the same inputs, the same pose)."""
+object in a process (START_POSES and REST_POSES, memo.Memo caches the caller
+can clear: the same inputs, the same pose)."""
 
 import copy
 import pickle
@@ -13,6 +14,7 @@ from pydrake.systems.analysis import Simulator, SimulatorConfig
 from pydrake.systems.framework import DiagramBuilder
 
 from regrasp_drake.errors import InputError
+from regrasp_drake.memo import Memo
 from regrasp_drake.station import throw
 from regrasp_drake.station.plant import BUMPER_THICKNESS_M, add_world
 from regrasp_drake.station.scenario import Scenario, scenario_digest
@@ -26,8 +28,7 @@ def start_poses(scenario: Scenario,
     throw's start pose and the object lying in the open palm (as every
     episode starts; for the palm toss, its rest pose). Computed once per
     scenario and object in a process."""
-    key = (scenario_digest(scenario), pickle.dumps(obj))
-    if key not in _START_POSES:
+    def compute():
         builder = DiagramBuilder()
         plant, _, instances, _, _ = add_world(builder, scenario, obj)
         context = plant.CreateDefaultContext()
@@ -36,12 +37,12 @@ def start_poses(scenario: Scenario,
         plant.SetPositions(context, instances.hand, robot.HAND_OPEN)
         X_WP = plant.GetFrameByName(
             "palm_surface", instances.hand).CalcPoseInWorld(context)
-        _START_POSES[key] = (X_WP, initial_object_pose(plant, instances,
-                                                        obj, scenario))
-    return _START_POSES[key]
+        return X_WP, initial_object_pose(plant, instances, obj, scenario)
+    return START_POSES.get((scenario_digest(scenario), pickle.dumps(obj)),
+                           compute)
 
 
-_START_POSES: dict = {}
+START_POSES = Memo("start poses")
 
 
 def initial_object_pose(plant, instances, obj, scenario) -> RigidTransform:
@@ -93,12 +94,10 @@ def rest_pose(scenario: Scenario, obj: ObjectSpec,
     relaxing.simulator_config = SimulatorConfig()
     key = (scenario_digest(relaxing), pickle.dumps(obj),
            X_WO.GetAsMatrix34().tobytes())
-    if key not in _REST_POSES:
-        _REST_POSES[key] = _relax(relaxing, obj, X_WO)
-    return _REST_POSES[key]
+    return REST_POSES.get(key, lambda: _relax(relaxing, obj, X_WO))
 
 
-_REST_POSES: dict = {}
+REST_POSES = Memo("rest poses")
 
 
 def _relax(scenario: Scenario, obj: ObjectSpec,

@@ -142,6 +142,29 @@ class CatchController:
     # or the MLP system.
     parameters: ConstantVectorSource | MlpSystem
 
+    def set_task(self, root_context, *, X_WG: RigidTransform | None = None,
+                 catch_parameters=None) -> None:
+        """Sets what this episode does in the diagram's context
+        `root_context`, before the state machine reads it (at the release
+        time: X_WG; at the trigger: the parameters): the palm's grasp pose
+        X_WG and the fixed catch parameters (h_catch, h_down), [m]. None
+        leaves a value as it is. The one place an episode's task is written
+        into a running context (a kept throw going on as another episode, a
+        catch planned at the release, a forked cell)."""
+        if X_WG is not None:
+            self.grasp_pose.set_pose(
+                self.grasp_pose.GetMyMutableContextFromRoot(root_context),
+                X_WG)
+        if catch_parameters is not None:
+            if not isinstance(self.parameters, ConstantVectorSource):
+                raise ValueError("set_task: the catch parameters come from "
+                                 "the MLP system in this diagram; expected "
+                                 "fixed ones")
+            source = self.parameters
+            source.get_mutable_source_value(
+                source.GetMyMutableContextFromRoot(root_context)
+            ).SetFromVector(list(catch_parameters))
+
 
 @dc.dataclass
 class Loggers:

@@ -24,7 +24,7 @@ the map prior with every map weighing alike ("map-prior-uniform").
    entry whose map catches somewhere is held out with every entry of its
    object (every catch point) removed from the map prior, and searched from
    - the cell (7, 2) (a fixed start, kept from the first evaluations),
-   - its own label cell (learning/dataset.py's most robust catching cell: a
+   - its own label cell (learning/labels.py's most robust catching cell: a
      catching cell by definition, so both searches need 1 cell; listed as
      the brief asked, a check rather than a comparison),
    - the label cell of the object's other catch point (the cell a network
@@ -62,7 +62,8 @@ from pathlib import Path
 
 import numpy as np
 
-from regrasp_drake.learning.dataset import label_cell, object_of
+from regrasp_drake.learning.dataset_files import object_of
+from regrasp_drake.learning.labels import label_cell
 from regrasp_drake.learning.search import (
     FEATURE_SIGMA,
     attempts_to_catch,

@@ -1,0 +1,51 @@
+"""Results computed once per process, in caches the caller can see and clear.
+
+Every cache of the package is one of these, named, and listed by `caches()`
+(`clear_all()` empties them): the start and rest poses of a scenario and an
+object (station/start_pose.py) are pure functions of their inputs, so a kept
+result is the result; episode.run.ThrowCache keeps simulated throws the same
+way and registers itself here too.
+"""
+
+_CACHES: dict = {}
+
+
+class Memo:
+    """A pure function's results by key, computed once (`get`)."""
+
+    def __init__(self, name: str):
+        if name in _CACHES:
+            raise ValueError(f"Memo: a cache named {name!r} exists already")
+        self.name = name
+        self._kept: dict = {}
+        _CACHES[name] = self
+
+    def get(self, key, compute):
+        """The result kept for `key`, or compute() kept and returned."""
+        if key not in self._kept:
+            self._kept[key] = compute()
+        return self._kept[key]
+
+    def __len__(self) -> int:
+        return len(self._kept)
+
+    def clear(self) -> None:
+        self._kept.clear()
+
+
+def register(name: str, cache) -> None:
+    """Lists another kind of cache (with a `clear()`) under `name`."""
+    if name in _CACHES:
+        raise ValueError(f"register: a cache named {name!r} exists already")
+    _CACHES[name] = cache
+
+
+def caches() -> dict:
+    """Every cache of the package by name."""
+    return dict(_CACHES)
+
+
+def clear_all() -> None:
+    """Empties every cache: the next episode computes everything again."""
+    for cache in _CACHES.values():
+        cache.clear()
