@@ -62,13 +62,64 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
     t0 = time.perf_counter()
     start = start_grasp(scenario, obj)
     parameters = [(float(h), float(d)) for h, d in parameters]
+    simulator, episode, scenario = _shared_run(scenario, obj, ik, X_WG,
+                                               throws)
+    t_final = scenario.monitor.max_time_s + 1.0
+    rows = [None] * len(parameters)
 
+    def report(indices, result):
+        for i in indices:
+            h_catch, h_down = parameters[i]
+            rows[i] = dc.replace(result, h_catch=h_catch, h_down=h_down)
+            if on_result is not None:
+                on_result(i, rows[i])
+
+    def died():
+        return EpisodeResult(
+            object=obj.name, outcome="failed", h_catch=None, h_down=None,
+            sim_time_s=None, wall_s=None, build_s=0.0, catch_time_s=None,
+            message="the simulation process died", logs=None)
+
+    def fork(group):
+        """A child process runs the first cell of `group` from here to its
+        outcome; it is the outcome of every cell in the group (see
+        `_run_to_triggers`)."""
+        children.start(group, lambda: _run_child(
+            simulator, episode, scenario, obj, start,
+            parameters[group[0]], t_final))
+
+    children = _Children(workers, report, died)
+    try:
+        message, waiting = _run_to_triggers(simulator, episode, scenario,
+                                            parameters, t_final, fork)
+        # Cells that never triggered share the parent's history to its end.
+        never = [i for i, (h, _) in enumerate(parameters) if h in waiting]
+        if never:
+            context = simulator.get_context()
+            if (not message
+                    and read_outcome(episode, context, "")[0] == "running"):
+                message = advance_to_outcome(simulator, episode, scenario,
+                                             t_final)
+            report(never, read_result(
+                episode, context, scenario, obj, start, message=message,
+                h_catch=None, h_down=None, wall_s=time.perf_counter() - t0))
+        children.finish_all()
+    except BaseException:
+        children.kill_all()  # interrupted (Ctrl-C) or failed
+        raise
+    return rows
+
+
+def _shared_run(scenario, obj, ik, X_WG, throws):
+    """(simulator, episode, scenario) of the run the cells share, at the
+    release time when handed over there (or at the start): the throw
+    simulated before by the watching throw the plan came from
+    (episode.ThrowCache), or simulated here and kept; its parameters
+    (0, 0) never trigger."""
     def rebuild(later):
         return build_episode_diagram(later, obj, ik=ik, X_WG=X_WG,
                                      catch_parameters=(0.0, 0.0))
 
-    # The throw to the release, simulated before by the watching throw
-    # the plan came from (episode.ThrowCache), or simulated here and kept.
     throws = THROWS if throws is None else throws
     key = throws.key(scenario, obj, 1, (0.0, 0.0), None)
     handover = throws.resume(key, rebuild, X_WG, (0.0, 0.0), ik)
@@ -86,115 +137,103 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
         if phase >= Phase.WAIT:
             raise ValueError("the hand already waits at the release time "
                              "(a cell may have triggered)")
+    return simulator, episode, scenario
+
+
+def _run_to_triggers(simulator, episode, scenario, parameters, t_final,
+                     fork) -> tuple[str, list]:
+    """Advances the shared run sample by sample until every row of h_catch
+    has triggered (or the run ends), calling fork(indices) for the cells
+    that part from it at each sample, before the state machine's update at
+    that time runs. Returns the run's failure message ("" if none) and the
+    h_catch values that never triggered."""
     ir_levels = episode.station.GetOutputPort("ir_levels")
     machine = episode.controller.state_machine
-    context = simulator.get_mutable_context()
+    context = simulator.get_context()
     ir_context = ir_levels.get_system().GetMyContextFromRoot(context)
     machine_context = machine.GetMyContextFromRoot(context)
-
-    rows = [None] * len(parameters)
+    sensors = scenario.sensors
     waiting = sorted({h for h, _ in parameters}, reverse=True)
-    children = {}  # pid -> (read end, indices)
-    period = scenario.sensors.period_s
-    levels = scenario.sensors.levels
-    approach_range = scenario.sensors.approach_range_m
-    t_final = scenario.monitor.max_time_s + 1.0
-
-    def finish(pid):
-        fd, indices = children[pid]
-        with os.fdopen(fd, "rb", closefd=False) as f:
-            data = f.read()
-        os.waitpid(pid, 0)
-        os.close(fd)
-        del children[pid]
+    message = ""
+    k = round(context.get_time() / sensors.period_s)  # 0, or the release's
+    while waiting:
         check_interrupt()
-        if data:
-            result = pickle.loads(data)
-        else:
-            result = EpisodeResult(
-                object=obj.name, outcome="failed", h_catch=None,
-                h_down=None, sim_time_s=None, wall_s=None, build_s=0.0,
-                catch_time_s=None, message="the simulation process died",
-                logs=None)
-        for i in indices:
-            h_catch, h_down = parameters[i]
-            rows[i] = dc.replace(result, h_catch=h_catch, h_down=h_down)
-            if on_result is not None:
-                on_result(i, rows[i])
+        k += 1
+        message = advance_to_outcome(simulator, episode, scenario,
+                                     min(k * sensors.period_s, t_final))
+        done = read_outcome(episode, context, message)[0] != "running"
+        if message or done or context.get_time() >= t_final:
+            break
+        if machine.GetOutputPort("phase").Eval(machine_context)[0] != Phase.WAIT:
+            continue
+        # What the state machine's check at this time will read.
+        distance = (float(np.min(ir_levels.Eval(ir_context)[3:]))
+                    / sensors.levels * sensors.approach_range_m)
+        triggered = []
+        while waiting and distance < waiting[0]:
+            triggered.append(waiting.pop(0))
+        # Rows that trigger at the same sample share their history to
+        # here, and h_catch is never read again: cells with the same
+        # h_down are one simulation.
+        for h_down in sorted({d for h, d in parameters if h in triggered}):
+            fork([i for i, (h, d) in enumerate(parameters)
+                  if h in triggered and d == h_down])
+    return message, waiting
 
-    def fork(group):
-        """A child process runs the first cell of `group` from here to its
-        outcome; it is the outcome of every cell in the group (see below)."""
-        while len(children) >= max(1, workers):
-            finish(next(iter(children)))
+
+class _Children:
+    """The forked children running cells, at most `workers` at once. Each
+    sends its EpisodeResult through a pipe; report(indices, result) is
+    called as each finishes (with died() for one that sent nothing)."""
+
+    def __init__(self, workers: int, report, died):
+        self._workers = max(1, workers)
+        self._report, self._died = report, died
+        self._running = {}  # pid -> (read end, indices)
+
+    def start(self, indices, run) -> None:
+        """Forks a child that sends run()'s result for `indices`."""
+        while len(self._running) >= self._workers:
+            self._finish_one()
         read_fd, write_fd = os.pipe()
         # Ctrl-C held back over the fork until the child is on record:
         # arriving during it, its handler would run inside an at-fork hook
         # (logging's), which swallows the KeyboardInterrupt; held back, it is
-        # raised right after, here, and the child is killed below.
+        # raised right after, here, and the child is killed (kill_all).
         mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
         pid = os.fork()
         if pid == 0:
             try:
                 signal.pthread_sigmask(signal.SIG_SETMASK, mask)
                 os.close(read_fd)
-                result = _run_child(simulator, episode, scenario, obj,
-                                    start, parameters[group[0]], t_final)
+                result = run()
                 with os.fdopen(write_fd, "wb") as f:
                     f.write(pickle.dumps(result))
             finally:
                 os._exit(0)
         os.close(write_fd)
-        children[pid] = (read_fd, group)
+        self._running[pid] = (read_fd, indices)
         signal.pthread_sigmask(signal.SIG_SETMASK, mask)
         check_interrupt()  # one that another thread took, lost in the fork
 
-    try:
-        message = ""
-        k = round(context.get_time() / period)  # 0, or the release time's (handed over)
-        while waiting:
-            check_interrupt()
-            k += 1
-            message = advance_to_outcome(simulator, episode, scenario,
-                                         min(k * period, t_final))
-            done = read_outcome(episode, context, message)[0] != "running"
-            if message or done or context.get_time() >= t_final:
-                break
-            phase = machine.GetOutputPort("phase").Eval(machine_context)[0]
-            if phase != Phase.WAIT:
-                continue
-            # What the state machine's check at this time will read.
-            distance = (float(np.min(ir_levels.Eval(ir_context)[3:]))
-                        / levels * approach_range)
-            triggered = []
-            while waiting and distance < waiting[0]:
-                triggered.append(waiting.pop(0))
-            # Rows that trigger at the same sample share their history to
-            # here, and h_catch is never read again: cells with the same
-            # h_down are one simulation.
-            for h_down in sorted({d for h, d in parameters if h in triggered}):
-                fork([i for i, (h, d) in enumerate(parameters)
-                      if h in triggered and d == h_down])
-        # Cells that never triggered share the parent's history to its end.
-        if any(h in waiting for h, _ in parameters):
-            if (not message
-                    and read_outcome(episode, context, "")[0] == "running"):
-                message = advance_to_outcome(simulator, episode, scenario,
-                                             t_final)
-            shared = read_result(
-                episode, context, scenario, obj, start, message=message,
-                h_catch=None, h_down=None,
-                wall_s=time.perf_counter() - t0)
-            for i, (h, d) in enumerate(parameters):
-                if h in waiting:
-                    rows[i] = dc.replace(shared, h_catch=h, h_down=d)
-                    if on_result is not None:
-                        on_result(i, rows[i])
-        while children:
-            finish(next(iter(children)))
-    except BaseException:
-        # Interrupted (Ctrl-C) or failed: no child outlives the command.
-        for pid, (fd, _) in children.items():
+    def finish_all(self) -> None:
+        while self._running:
+            self._finish_one()
+
+    def _finish_one(self) -> None:
+        pid = next(iter(self._running))
+        fd, indices = self._running[pid]
+        with os.fdopen(fd, "rb", closefd=False) as f:
+            data = f.read()
+        os.waitpid(pid, 0)
+        os.close(fd)
+        del self._running[pid]
+        check_interrupt()
+        self._report(indices, pickle.loads(data) if data else self._died())
+
+    def kill_all(self) -> None:
+        """No child outlives the command."""
+        for pid, (fd, _) in self._running.items():
             try:
                 os.kill(pid, signal.SIGKILL)
                 os.waitpid(pid, 0)
@@ -203,9 +242,8 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
             try:
                 os.close(fd)
             except OSError:
-                pass  # closed already (interrupted in `finish`)
-        raise
-    return rows
+                pass  # closed already (interrupted in `_finish_one`)
+        self._running.clear()
 
 
 def _run_child(simulator, episode, scenario, obj, start, cell_parameters,

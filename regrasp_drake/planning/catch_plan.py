@@ -27,7 +27,7 @@ from regrasp_drake.planning.free_flight import propagate
 from regrasp_drake.planning.ik import ArmIk, palm_up_pose
 
 # The state machine's time law of the move to the grasp pose.
-from regrasp_drake.station.catch_state_machine import quintic_from
+from regrasp_drake.planning.time_law import quintic_from
 from regrasp_drake.world.objects import ObjectSpec
 from regrasp_drake.world.robot import ARM_EFFORT_LIMITS
 
@@ -299,7 +299,7 @@ def move_torque_ratio(ik: ArmIk, q_start, q_end, duration_s: float,
     """The largest |τ_i| / effort limit_i the arm needs to follow the state
     machine's move from q_start (with velocity v_start and acceleration
     a_start, default at rest: the throw hands over a moving arm) to q_end at
-    rest in `duration_s` (`catch_state_machine.quintic_from`), by inverse
+    rest in `duration_s` (`planning/time_law.quintic_from`), by inverse
     dynamics of the arm and hand (the object is in flight). Above 1 the
     servos saturate: the arm lags, overshoots and reaches the grasp position
     late. `gravity`: count the arm's weight too (the palm toss's plans, the

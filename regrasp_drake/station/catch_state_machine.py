@@ -58,6 +58,7 @@ from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 from pydrake.trajectories import PiecewisePolynomial
 
 from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.planning.time_law import quintic, quintic_from
 from regrasp_drake.station.palm_toss import TossDesign, toss_trajectory
 from regrasp_drake.world.robot import HAND_JOINTS
 
@@ -138,31 +139,6 @@ class ThrowPerturbation:
         return phi * dv, g * dv, (-2.0 * u / w * g) * dv
 
 
-def quintic_from(tau, T, q0, v0, a0, q1):
-    """The quintic from (q0, v0, a0) at τ = 0 to q1 at rest (zero velocity
-    and acceleration) at τ = 1, τ = t / T: its (q, v, v̇) at τ, a number or
-    a column (k × 1: rows of k × n), held at q1 after τ = 1."""
-    scalar = np.ndim(tau) == 0
-    if scalar and tau >= 1.0:
-        return q1, np.zeros_like(q1), np.zeros_like(q1)
-    done = None if scalar else tau >= 1.0
-    tau = max(tau, 0.0) if scalar else np.maximum(tau, 0.0)
-    c1, c2 = v0 * T, 0.5 * a0 * T * T
-    A = q1 - q0 - c1 - c2
-    B = -c1 - 2.0 * c2
-    C = -2.0 * c2
-    c3 = 10.0 * A - 4.0 * B + 0.5 * C
-    c4 = -15.0 * A + 7.0 * B - C
-    c5 = 6.0 * A - 3.0 * B + 0.5 * C
-    q = q0 + tau * (c1 + tau * (c2 + tau * (c3 + tau * (c4 + tau * c5))))
-    dq = c1 + tau * (2 * c2 + tau * (3 * c3 + tau * (4 * c4 + tau * 5 * c5)))
-    ddq = 2 * c2 + tau * (6 * c3 + tau * (12 * c4 + tau * 20 * c5))
-    if done is None:
-        return q, dq / T, ddq / (T * T)
-    return (np.where(done, q1, q), np.where(done, 0.0, dq / T),
-            np.where(done, 0.0, ddq / (T * T)))
-
-
 def preshape_closures(catch) -> np.ndarray:
     """The fingers' pre-shape, per hand joint (HAND_JOINTS order: each
     finger's knuckle j1 then distal j2), as a fraction of the closed
@@ -173,16 +149,6 @@ def preshape_closures(catch) -> np.ndarray:
     if distal is not None:
         closures[1::2] = distal
     return closures
-
-
-def _quintic(tau):
-    """Time law s(τ), s'(τ), s''(τ) with zero end velocity and acceleration
-    (τ a number or an array)."""
-    tau = np.clip(tau, 0.0, 1.0) if np.ndim(tau) else min(max(tau, 0.0), 1.0)
-    s = tau**3 * (10 - 15 * tau + 6 * tau**2)
-    ds = 30 * tau**2 * (1 - tau) ** 2
-    dds = 60 * tau * (1 - tau) * (1 - 2 * tau)
-    return s, ds, dds
 
 
 class CatchStateMachine(LeafSystem):
@@ -326,7 +292,7 @@ class CatchStateMachine(LeafSystem):
         if ((self._toss and x[_PHASE] == _MOVE)  # from the toss's motion
                 or (self._cushion and x[_PHASE] == _RETURN)):  # the lowering's
             return quintic_from(tau, T, x[_QA], x[_V0], x[_A0], x[_QB])
-        s, ds, dds = _quintic(tau)
+        s, ds, dds = quintic(tau)
         dq = x[_QB] - x[_QA]
         q, v, a = x[_QA] + s * dq, ds / T * dq, dds / T**2 * dq
         if np.ndim(tau) == 0:

@@ -3,7 +3,7 @@
     .venv/bin/python studies/palm_toss/move_shape.py [--object table1-row2]
         [--durations 0.45 0.40 0.36 0.33]
 
-After the palm toss the catch's move (`catch_state_machine.quintic_from`)
+After the palm toss the catch's move (`planning/time_law.quintic_from`)
 takes the arm from the toss's moving state to the grasp pose; it needs 0.45
 s within 0.9 of the servos' limits, so the hand is in place only ~50 ms
 before the catch (FINDINGS.md). This asks how much of that is the quintic's
@@ -25,7 +25,7 @@ from pydrake.multibody.tree import MultibodyForces
 from regrasp_drake.planning.catch_plan import ARM_EFFORT_LIMITS
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
-from regrasp_drake.station.catch_state_machine import quintic_from
+from regrasp_drake.planning.time_law import quintic_from
 from regrasp_drake.station.scenario import load_scenario
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world.objects import resolve_object
