@@ -15,3 +15,19 @@ def bar(total: int, label: str = "", unit: str = "cells", *,
     return tqdm(total=total, desc=label, unit=f" {unit}", file=sys.stderr,
                 disable=None if enabled else True, dynamic_ncols=True,
                 leave=True)
+
+
+def iterate(items, total: int, label: str = "", unit: str = "items", *,
+            enabled: bool = True):
+    """Yields `items` (`total` of them) with a progress bar (`bar`) that
+    advances as each one's work is done (when the loop asks for the next)."""
+    with bar(total, label, unit, enabled=enabled) as shown:
+        for item in items:
+            yield item
+            shown.update()
+
+
+def say(text: str, file) -> None:
+    """Writes a line of progress to `file` without breaking a bar drawn on
+    the terminal (tqdm.write)."""
+    tqdm.write(text, file=file)

@@ -104,6 +104,7 @@ from regrasp_drake.planning.catch_plan import (
 )
 from regrasp_drake.planning.free_flight import flight_from_release
 from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.progress import say
 from regrasp_drake.station.mlp_system import FEATURE_NAMES, CatchMlp, ParameterSpace
 from regrasp_drake.station.scenario import Scenario, scenario_digest, target_of
 from regrasp_drake.throw_catch import (
@@ -296,7 +297,7 @@ class _Phase:
 
     def report(self, line: str) -> None:
         if self.progress is not None:
-            print(f"{self.obj.name}: {line}", file=self.progress, flush=True)
+            say(f"{self.obj.name}: {line}", self.progress)
 
     def watch(self) -> EpisodeResult:
         """A watching throw (no catch attempt)."""

@@ -22,6 +22,7 @@ import numpy as np
 import torch
 
 from regrasp_drake import atomic_io
+from regrasp_drake import progress as progress_lines
 from regrasp_drake.errors import InputError
 from regrasp_drake.learning.learning_phase import NoCatchPoint, learn
 from regrasp_drake.map_rows import open_rows, read_rows
@@ -175,11 +176,13 @@ def collect(base: Scenario, model, targets, objects, rows_path, *,
     _JOBS[:] = jobs
     with (multiprocessing.get_context("fork").Pool(workers) as pool,
           open_rows(rows_path) as f):
-        for k, row in enumerate(pool.imap(_one, range(len(jobs)))):
+        for row in progress_lines.iterate(
+                pool.imap(_one, range(len(jobs))), len(jobs), "offset prior",
+                "episodes", enabled=progress is not None):
             rows.append(row)
             f.append(json.dumps(row))
             if progress is not None:
-                print(f"[{k + 1}/{len(jobs)}] {row['target']} "
-                      f"{row['object']}: {row['outcome']}, slide "
-                      f"{row['slide_mm']} mm", file=progress, flush=True)
+                progress_lines.say(
+                    f"{row['target']} {row['object']}: {row['outcome']}, "
+                    f"slide {row['slide_mm']} mm", progress)
     return rows

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from regrasp_drake import atomic_io, grid
+from regrasp_drake import progress as progress_lines
 from regrasp_drake.learning.learning_phase import NoCatchPoint, learn
 from regrasp_drake.learning.library import load_library
 from regrasp_drake.learning.plots import plot_search
@@ -59,7 +60,9 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
     # A Table 1 object keeps its row and the paper's figures.
     paper = [by_name.get(name, (k + 1, None, None, None, None, None))
              for k, name in enumerate(names)]
-    for (row, obj_id, density, com, time_s, trials), name in zip(paper, names):
+    for (row, obj_id, density, com, time_s, trials), name in progress_lines.iterate(
+            zip(paper, names), len(names), "Table 1", "objects",
+            enabled=progress is not None):
         obj = resolve_object(name=name)
         try:
             result = learn(scenario, obj, model, ik=ik,
@@ -81,7 +84,7 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
                              "density": density, "com": list(com),
                              "time_s": time_s, "trials": trials}})
             if progress is not None:
-                print(f"{obj.name}: {e}", file=progress, flush=True)
+                progress_lines.say(f"{obj.name}: {e}", progress)
             continue
         entry = {
             "row": row, "object": obj.name, "paper_object_id": obj_id,
