@@ -130,7 +130,6 @@ def _run(args) -> int:
     if sim.get_context().get_time() < release_time(scenario):
         sim.AdvanceTo(release_time(scenario))
     saved = sim.get_context().Clone()
-    grasp = station.controller.grasp_pose
     rows = []
     name = f"{args.object}_{args.h_catch:g}_{args.h_down:g}"
     lines = args.out / (f"{name}_{args.tag}.jsonl" if args.tag
@@ -139,9 +138,9 @@ def _run(args) -> int:
         for offset in offsets:
             dx, dy, dz = (*offset, 0)[:3]
             context = saved.Clone()
-            grasp.set_pose(grasp.GetMyMutableContextFromRoot(context),
-                           X_WG @ RigidTransform([dx / 1e3, dy / 1e3,
-                                                  dz / 1e3]))
+            station.controller.set_task(
+                context, X_WG=X_WG @ RigidTransform([dx / 1e3, dy / 1e3,
+                                                     dz / 1e3]))
             sim.reset_context(context)
             sim.Initialize(InitializeParams(
                 suppress_initialization_events=True))
