@@ -103,10 +103,10 @@ def _run(args) -> int:
     from pydrake.math import RigidTransform
     from pydrake.systems.analysis import InitializeParams
 
-    from regrasp_drake.episode.run import (
+    from regrasp_drake.episode.run import read_ending
+    from regrasp_drake.episode.simulate import (
         advance_to_outcome,
         hand_over,
-        read_ending,
         read_outcome,
         release_time,
     )

@@ -10,7 +10,8 @@ import torch
 from pydrake.math import RigidTransform
 
 from regrasp_drake import memo
-from regrasp_drake.episode.run import THROWS, Logs, ThrowCache, run_episode
+from regrasp_drake.episode.run import run_episode
+from regrasp_drake.episode.simulate import THROWS, Logs, ThrowCache
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.scenario import ThrowNoise, load_scenario
 from regrasp_drake.throw_catch import plan_catch

@@ -29,14 +29,12 @@ import time
 
 import numpy as np
 
-from regrasp_drake.episode.run import (
+from regrasp_drake.episode.run import EpisodeResult, read_result, start_grasp
+from regrasp_drake.episode.simulate import (
     THROWS,
-    EpisodeResult,
     advance_to_outcome,
     hand_over,
     read_outcome,
-    read_result,
-    start_grasp,
 )
 from regrasp_drake.errors import check_interrupt
 from regrasp_drake.station.catch_state_machine import Phase
