@@ -4,8 +4,11 @@ Every cache of the package is one of these, named, and listed by `caches()`
 (`clear_all()` empties them): the start and rest poses of a scenario and an
 object (station/start_pose.py) are pure functions of their inputs, so a kept
 result is the result; episode.simulate.ThrowCache keeps simulated throws the same
-way and registers itself here too.
+way and registers itself here too, and `lru_cache` lists a functools cache
+(the toss's trajectories, the arm's joint limits).
 """
+
+import functools
 
 _CACHES: dict = {}
 
@@ -38,6 +41,17 @@ def register(name: str, cache) -> None:
     if name in _CACHES:
         raise ValueError(f"register: a cache named {name!r} exists already")
     _CACHES[name] = cache
+
+
+def lru_cache(name: str, maxsize: int | None = None):
+    """A decorator: functools.lru_cache(maxsize) of a pure function, listed
+    under `name` (so that `clear_all()` empties it too)."""
+    def decorate(function):
+        cached = functools.lru_cache(maxsize=maxsize)(function)
+        cached.clear = cached.cache_clear
+        register(name, cached)
+        return cached
+    return decorate
 
 
 def caches() -> dict:

@@ -80,11 +80,15 @@ class ThrowCacheTest(unittest.TestCase):
         # Every cache of the package is listed, and clearing them all makes
         # the next episode compute everything again: the same episode.
         self.assertEqual(set(memo.caches()),
-                         {"start poses", "rest poses", "throws"})
+                         {"start poses", "rest poses", "throws",
+                          "forward tilts", "sideways tables",
+                          "toss trajectories", "arm joint limits"})
         self.assertGreater(len(memo.caches()["start poses"]), 0)
         mine.clear()
         memo.clear_all()
         self.assertEqual(len(memo.caches()["start poses"]), 0)
+        self.assertEqual(
+            memo.caches()["arm joint limits"].cache_info().currsize, 0)
         again = run_episode(self.scenario, self.obj, ik=self.ik, X_WG=X_WG,
                             catch_parameters=parameters, throws=mine)
         self.assertEqual(mine.hits, 1)  # simulated from the start

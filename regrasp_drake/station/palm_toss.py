@@ -53,11 +53,12 @@ joined by a C2 cubic spline (`toss_trajectory`).
 """
 
 import dataclasses as dc
-import functools
 
 import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.trajectories import PiecewisePolynomial
+
+from regrasp_drake import memo
 
 # Inverse kinematics samples of the palm's motion, [s].
 IK_PERIOD_S = 0.005
@@ -233,7 +234,7 @@ class TossDesign:
         return float(y[-1] + v_y[-1] * (t - times[-1]))
 
 
-@functools.lru_cache(maxsize=64)
+@memo.lru_cache("forward tilts", maxsize=64)
 def _forward_tilt(design: TossDesign) -> float:
     """The forward-first coefficient whose sideways motion has come back
     to rest when `design`'s lift ends (bisection: the sideways velocity
@@ -248,7 +249,7 @@ def _forward_tilt(design: TossDesign) -> float:
     return (lo + hi) / 2
 
 
-@functools.lru_cache(maxsize=64)
+@memo.lru_cache("sideways tables", maxsize=64)
 def _sideways_table(design: TossDesign):
     return design.sideways()
 
@@ -313,7 +314,7 @@ def palm_twist_at(design: TossDesign, X_WP0: RigidTransform, t: float):
             (after.translation() - before.translation()) / (2 * _TWIST_DT_S))
 
 
-@functools.lru_cache(maxsize=16)
+@memo.lru_cache("toss trajectories", maxsize=16)
 def _trajectory(design: TossDesign, ik) -> PiecewisePolynomial:
     X_WP0 = ik.palm_pose(np.array(design.start_q))
     n = int(np.ceil(design.duration_s / IK_PERIOD_S))

@@ -7,7 +7,6 @@ servo torque limits), `hand.sdf` (10-DOF hand, in-plant PD finger servos) and
 scenario's default `directives`). See `sdf/README.md` for sources and choices.
 """
 
-import functools
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
@@ -25,6 +24,7 @@ from pydrake.multibody.parsing import (
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import ModelInstanceIndex
 
+from regrasp_drake import memo
 from regrasp_drake.paths import SDF_DIR
 
 PACKAGE_NAME = "regrasp_drake"
@@ -76,7 +76,7 @@ class RobotInstances:
     hand: ModelInstanceIndex
 
 
-@functools.cache
+@memo.lru_cache("arm joint limits")
 def arm_joint_limits() -> tuple[tuple[float, float], ...]:
     """The six arm joints' position limits (lower, upper), rad, joint1 first,
     as puma560.sdf states them (read from the file, no plant built)."""
