@@ -149,6 +149,27 @@ def gives_target(scenario: Scenario, obj: ObjectSpec, point: CatchPoint,
     return verdict.axis_error_deg < 90.0 and verdict.side_ok is not False
 
 
+def hand_ready_s(scenario: Scenario) -> float:
+    """When the hand can be at a catch point: the throw's end and the move
+    there (catch.move_to_grasp_s), [s]."""
+    return throw.free_time_s(scenario) + scenario.catch.move_to_grasp_s
+
+
+def watched_catch_moments(scenario: Scenario, obj: ObjectSpec,
+                          watched: EpisodeResult) -> list[CatchPoint]:
+    """The watched flight's catch moments, best first, under the scenario's
+    catch fields (`catch_plan.catch_moments`): after `hand_ready_s`, with
+    room below for every h_catch of the grid."""
+    c = scenario.catch
+    return catch_moments(watched.logs.t, watched.logs.object_state, obj,
+                         height_m=c.catch_height_m, band_m=c.height_band_m,
+                         ready_s=hand_ready_s(scenario),
+                         fall_m=H_CATCH_RANGE[1],
+                         tilt_tolerance=c.tilt_tolerance,
+                         gravity_m_per_s2=scenario.gravity_m_per_s2,
+                         exact_crossings=throw.is_toss(scenario.throw))
+
+
 def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
                  watched: EpisodeResult, *, count: int,
                  min_separation_s: float = 0.0) -> list[CatchPlan]:
@@ -158,7 +179,6 @@ def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     c = scenario.catch
     target = target_of(scenario)
     grasp.check_reachable(target, obj)
-    t_ready = throw.free_time_s(scenario) + c.move_to_grasp_s
     toss = throw.is_toss(scenario.throw)
     q_start, v_start, a_start = throw.end_state(scenario.throw, ik)
     q_seed = throw.grasp_ik_seed(scenario, ik)
@@ -173,18 +193,13 @@ def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
             f"{t_release:.3f} s, with the object near the ground (within "
             "monitor.ground_clearance_m of it, counting the object's size), "
             "expected an object the hand holds up until it lets it go")
-    points = catch_moments(watched.logs.t, watched.logs.object_state, obj,
-                           height_m=c.catch_height_m, band_m=c.height_band_m,
-                           ready_s=t_ready, fall_m=H_CATCH_RANGE[1],
-                           tilt_tolerance=c.tilt_tolerance,
-                           gravity_m_per_s2=scenario.gravity_m_per_s2,
-                           exact_crossings=toss)
+    points = watched_catch_moments(scenario, obj, watched)
     if not points:
         raise InputError(
             f"object {obj.name}: no catch point (the watched flight never "
             f"descends within {c.height_band_m} m of catch.catch_height_m = "
             f"{c.catch_height_m} m after the hand can be there, "
-            f"{t_ready:.3f} s)")
+            f"{hand_ready_s(scenario):.3f} s)")
     reasons, plans = [], []
     for point in points:
         if any(abs(point.t_s - p.catch_point.t_s) < max(min_separation_s, 1e-9)

@@ -6,8 +6,8 @@ import dataclasses as dc
 
 from regrasp_drake.episode.run import EpisodeResult
 from regrasp_drake.errors import InputError
-from regrasp_drake.parameter_space import H_CATCH_RANGE, H_DOWN_VALUES
-from regrasp_drake.planning.catch_plan import CatchPoint, catch_moments
+from regrasp_drake.parameter_space import H_DOWN_VALUES
+from regrasp_drake.planning.catch_plan import CatchPoint
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
 from regrasp_drake.station.scenario import Scenario
@@ -17,6 +17,7 @@ from regrasp_drake.throw_catch import (
     plan_catch,
     reachable_h_down,
     watch,
+    watched_catch_moments,
 )
 from regrasp_drake.world.objects import ObjectSpec
 
@@ -66,16 +67,8 @@ def observe(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
         plan, error = plan_catch(scenario, obj, ik, watched), ""
     except InputError as e:
         plan, error = None, str(e)
-    c = scenario.catch
-    t_ready = throw.free_time_s(scenario) + c.move_to_grasp_s
     q_end = throw.grasp_ik_seed(scenario, ik)
-    points = catch_moments(watched.logs.t, watched.logs.object_state, obj,
-                           height_m=c.catch_height_m, band_m=c.height_band_m,
-                           ready_s=t_ready, fall_m=H_CATCH_RANGE[1],
-                           tilt_tolerance=c.tilt_tolerance,
-                           gravity_m_per_s2=scenario.gravity_m_per_s2,
-                           exact_crossings=throw.is_toss(scenario.throw)
-                           )[:shown]
+    points = watched_catch_moments(scenario, obj, watched)[:shown]
     if plan is not None and all(p.t_s != plan.catch_point.t_s for p in points):
         points.append(plan.catch_point)  # chosen further down the order
     reach = []
