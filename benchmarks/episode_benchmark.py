@@ -31,6 +31,8 @@ The forked cell's part runs from the trigger (the first sample in LOWER,
 less one sample: what each forked cell of a success map simulates).
 `peak_memory_gib`: this process's peak resident set size. Also printed as
 JSON and drawn as a PNG of the split.
+
+Over 500 lines as one benchmark: its runs, the physics replay, the split and its plot.
 """
 
 # regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
