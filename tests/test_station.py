@@ -16,6 +16,7 @@ import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.analysis import Simulator
+from pydrake.systems.controllers import InverseDynamicsController
 from pydrake.systems.framework import DiagramBuilder
 
 from regrasp_drake.episode.replay import (
@@ -29,7 +30,11 @@ from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
 from regrasp_drake.station.catch_state_machine import Phase
 from regrasp_drake.station.scenario import load_scenario
-from regrasp_drake.station.station import add_station, build_episode_diagram
+from regrasp_drake.station.station import (
+    add_station,
+    build_episode_diagram,
+    make_arm_controller,
+)
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world import robot
 from regrasp_drake.world.objects import load_catalogue
@@ -281,3 +286,37 @@ class TestStationPorts(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class TestArmController(unittest.TestCase):
+    """Without an integral gain the arm's controller is Drake's
+    InverseDynamicsController without its PID's integrator (continuous
+    state): the same torques bit for bit."""
+
+    def test_same_torques_as_drakes_controller(self):
+        scenario = load_scenario()
+        ours = make_arm_controller(scenario)
+        self.assertEqual(ours.num_continuous_states(), 0)
+        arm = scenario.arm
+        drakes = InverseDynamicsController(
+            robot.arm_control_plant(scenario.directives), arm.kp, arm.ki,
+            arm.kd, has_reference_acceleration=True)
+        self.assertEqual(drakes.num_continuous_states(), 6)
+        rng = np.random.default_rng(7)
+        for _ in range(20):
+            inputs = {"estimated_state": rng.uniform(-3, 3, 12),
+                      "desired_state": rng.uniform(-3, 3, 12),
+                      "desired_acceleration": rng.uniform(-30, 30, 6)}
+            torques = []
+            for system in (ours, drakes):
+                context = system.CreateDefaultContext()
+                for name, value in inputs.items():
+                    system.GetInputPort(name).FixValue(context, value)
+                torques.append(system.GetOutputPort("actuation").Eval(context))
+            np.testing.assert_array_equal(torques[0], torques[1])
+
+    def test_integral_gain_keeps_drakes_controller(self):
+        scenario = load_scenario(text="{arm: {ki: [1, 1, 1, 1, 1, 1]}}")
+        controller = make_arm_controller(scenario)
+        self.assertIsInstance(controller, InverseDynamicsController)
+        self.assertEqual(controller.num_continuous_states(), 6)

@@ -11,9 +11,9 @@ parameters (fixed, or the MLP) and the grasp monitor, outside the station.
 `build_episode_diagram`: one episode's diagram, the two wired top to bottom
 with the loggers and Meshcat.
 
-Over 500 lines because it is the Diagram's builder: the station, its
-finger servos, the catch controller, the loggers and the hand-over between
-plants; the physics is in plant.py, the start pose in start_pose.py.
+Over 500 lines because it is the Diagram's builder: the station, the
+arm's controller and the finger servos, the catch controller, the loggers
+and the hand-over between plants; the physics is in plant.py, the start pose in start_pose.py.
 """
 
 import dataclasses as dc
