@@ -32,7 +32,7 @@ import sys
 import time
 from pathlib import Path
 
-from regrasp_drake import atomic_io, scenario_args
+from regrasp_drake import atomic_io, progress, scenario_args
 
 GRID_MM = range(-20, 21, 10)
 
@@ -135,7 +135,8 @@ def _run(args) -> int:
     lines = args.out / (f"{name}_{args.tag}.jsonl" if args.tag
                         else f"{name}.jsonl")
     with atomic_io.replace(lines, "w") as f:
-        for offset in offsets:
+        for offset in progress.iterate(offsets, len(offsets), name,
+                                       "offsets"):
             dx, dy, dz = (*offset, 0)[:3]
             context = saved.Clone()
             station.controller.set_task(
@@ -156,7 +157,7 @@ def _run(args) -> int:
                        reason=ending["drop_reason"],
                        touching=ending["touching"], msg=message)
             rows.append(row)
-            print(json.dumps(row), flush=True)
+            progress.say(json.dumps(row), sys.stdout)
             f.write(json.dumps(row) + "\n")
     caught = sum(r["outcome"] == "caught" for r in rows)
     held = sum(bool(r["held"]) for r in rows)

@@ -35,7 +35,7 @@ import map_convergence as study  # beside this script
 import numpy as np
 
 
-from regrasp_drake import atomic_io, scenario_args
+from regrasp_drake import atomic_io, progress, scenario_args
 
 _OBJECTS = ["table1-row4", "table1-row2"]
 _STDS = [1e-4, 1e-3, 1e-2]
@@ -155,17 +155,21 @@ def _run(args) -> int:
     levels = [(0.0, 0)] + [(std, seed) for std in args.stds
                            for seed in range(1, args.seeds + 1)]
     maps = {name: {} for name in args.objects}
-    for std, seed in levels:
-        directory = _level_dir(args.out, std, seed)
-        directory.mkdir(parents=True, exist_ok=True)
-        scenario = given if std == 0 else noisy(given, std, seed)
-        if std:
-            _write_scenario(directory, scenario, label)
-        for name in args.objects:
-            print(f"{name}, noise {std:g} rad/s, seed {seed}", file=sys.stderr)
-            maps[name][(std, seed)] = study.map_at_step(
-                name, args.step_ms, directory, args.workers,
-                base=scenario)
+    with progress.bar(len(levels) * len(args.objects), "noise levels",
+                      "maps") as shown:
+        for std, seed in levels:
+            directory = _level_dir(args.out, std, seed)
+            directory.mkdir(parents=True, exist_ok=True)
+            scenario = given if std == 0 else noisy(given, std, seed)
+            if std:
+                _write_scenario(directory, scenario, label)
+            for name in args.objects:
+                progress.say(f"{name}, noise {std:g} rad/s, seed {seed}",
+                             sys.stderr)
+                maps[name][(std, seed)] = study.map_at_step(
+                    name, args.step_ms, directory, args.workers,
+                    base=scenario)
+                shown.update()
     summary = {"step_ms": args.step_ms, "stds_rad_per_s": args.stds,
                "seeds": args.seeds, "scenario": label,
                "objects": summarize(maps, args.stds)}

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from regrasp_drake import atomic_io
+from regrasp_drake import atomic_io, progress
 from regrasp_drake.learning.learning_phase import learn
 from regrasp_drake.learning.offset_prior import OffsetPrior
 from regrasp_drake.learning.table1 import object_names
@@ -74,30 +74,32 @@ def main(argv=None) -> int:
              if args.offset_prior else None)
     ik = ArmIk(base.directives)
     rows = []
-    for text in args.targets:
-        target = Target.parse(text)
+    names = object_names(args.objects)
+    targets = [Target.parse(text) for text in args.targets]
+    for target, name in progress.iterate(
+            [(t, n) for t in targets for n in names],
+            len(targets) * len(names), "regrasp convergence", "pairs"):
         shipped = with_target(base, target)
         fine = with_catch_time_step(with_time_step(
             shipped, FINE_THROW_STEP_S), FINE_CATCH_STEP_S)
-        for name in object_names(args.objects):
-            obj = resolve_object(name=name)
-            a = first_catch(shipped, obj, model, ik, prior)
-            b = first_catch(fine, obj, model, ik, prior)
-            offsets = [None if r["achieved_grasp"] is None
-                       else r["achieved_grasp"]["offset_mm"] for r in (a, b)]
-            row = {"object": name, "target": target.as_dict(),
-                   "shipped": a, "fine": b,
-                   "catch_point_mm": round(1e3 * float(np.linalg.norm(
-                       np.subtract(a["catch_p_WO"], b["catch_p_WO"]))), 2),
-                   "catch_moment_ms": round(1e3 * abs(a["catch_t_s"]
-                                                      - b["catch_t_s"]), 2),
-                   "offset_mm": (None if None in offsets
-                                 else round(abs(offsets[0] - offsets[1]), 2))}
-            rows.append(row)
-            print(f"{target.label()} {name}: catch point "
-                  f"{row['catch_point_mm']} mm, {row['catch_moment_ms']} ms; "
-                  f"{a['outcome']} / {b['outcome']}, offsets {offsets} mm",
-                  flush=True)
+        obj = resolve_object(name=name)
+        a = first_catch(shipped, obj, model, ik, prior)
+        b = first_catch(fine, obj, model, ik, prior)
+        offsets = [None if r["achieved_grasp"] is None
+                   else r["achieved_grasp"]["offset_mm"] for r in (a, b)]
+        row = {"object": name, "target": target.as_dict(),
+               "shipped": a, "fine": b,
+               "catch_point_mm": round(1e3 * float(np.linalg.norm(
+                   np.subtract(a["catch_p_WO"], b["catch_p_WO"]))), 2),
+               "catch_moment_ms": round(1e3 * abs(a["catch_t_s"]
+                                                  - b["catch_t_s"]), 2),
+               "offset_mm": (None if None in offsets
+                             else round(abs(offsets[0] - offsets[1]), 2))}
+        rows.append(row)
+        progress.say(f"{target.label()} {name}: catch point "
+                     f"{row['catch_point_mm']} mm, {row['catch_moment_ms']} "
+                     f"ms; {a['outcome']} / {b['outcome']}, offsets "
+                     f"{offsets} mm", sys.stdout)
     met = [r for r in rows if r["catch_point_mm"] <= 10.0
            and r["catch_moment_ms"] <= 4.0
            and r["offset_mm"] is not None and r["offset_mm"] <= 5.0]

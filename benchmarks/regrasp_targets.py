@@ -28,7 +28,7 @@ from pathlib import Path
 
 import torch
 
-from regrasp_drake import atomic_io
+from regrasp_drake import atomic_io, progress
 from regrasp_drake.map_rows import open_rows, read_rows
 from regrasp_drake.errors import InputError
 from regrasp_drake.learning.flight_predictor import FlightPredictor
@@ -163,7 +163,8 @@ def main(argv=None) -> int:
     jobs = [(target, name, mode, trial) for target in targets
             for name in object_list(args.objects) for mode in args.modes
             for trial in range(args.trials)]
-    for target, name, mode, trial in jobs:
+    for target, name, mode, trial in progress.iterate(
+            jobs, len(jobs), "regrasp targets", "episodes"):
         scenario = noisy(with_target(base, target), args.noise_level, trial)
         digest = scenario_digest(scenario)
         key = (name, target.kind, target.offset_mm, mode,
@@ -183,10 +184,10 @@ def main(argv=None) -> int:
         rows.append(row)
         with open_rows(rows_path) as f:
             f.append(json.dumps(row))
-        print(f"{target.label()} {mode} {name}: "
-              f"{'in target' if row['success'] else row['stopped']}"
-              f" after {row['throws']} throws "
-              f"{row.get('achieved_grasp')}", flush=True)
+        progress.say(f"{target.label()} {mode} {name}: "
+                     f"{'in target' if row['success'] else row['stopped']}"
+                     f" after {row['throws']} throws "
+                     f"{row.get('achieved_grasp')}", sys.stdout)
     summary = summarize(rows, targets, args.modes, args.noise_level)
     atomic_io.write_json(args.out.with_suffix(".json"), summary)
     print(json.dumps(summary, indent=1))

@@ -29,5 +29,7 @@ def iterate(items, total: int, label: str = "", unit: str = "items", *,
 
 def say(text: str, file) -> None:
     """Writes a line of progress to `file` without breaking a bar drawn on
-    the terminal (tqdm.write)."""
+    the terminal (tqdm.write), flushed so that a piped log shows it at
+    once."""
     tqdm.write(text, file=file)
+    file.flush()

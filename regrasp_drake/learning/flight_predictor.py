@@ -49,6 +49,7 @@ from pydrake.common.eigen_geometry import AngleAxis, Quaternion
 from pydrake.math import RotationMatrix
 
 from regrasp_drake import atomic_io
+from regrasp_drake import progress as progress_lines
 from regrasp_drake.errors import InputError, field_error
 from regrasp_drake.input_files import load_json
 from regrasp_drake.planning.free_flight import (
@@ -342,23 +343,27 @@ def cross_validate(objects, states, scenario, ik, *,
     row per object, as flight_errors."""
     t0 = free_time_s(scenario)
     rows = []
-    for geometry in sorted({o.geometry for o in objects}):
-        train = [(o, s) for o, s in zip(objects, states)
-                 if o.geometry != geometry]
-        predictor = FlightPredictor.fit([o for o, _ in train],
-                                        [s for _, s in train],
-                                        scenario=scenario)
-        for obj, state in zip(objects, states):
-            if obj.geometry != geometry:
-                continue
-            actual = as_watched(*sampled_flight(state, t0, obj, scenario))
-            row = {"object": obj.name, "geometry": geometry} | _compare(
-                scenario, obj, ik, predictor.as_watched(obj, scenario), actual)
-            row |= state_errors(obj, predictor.predict_state(obj, scenario),
-                                state)
-            rows.append(row)
-            if progress is not None:
-                print(f"cv {obj.name}: {row}", file=progress, flush=True)
+    with progress_lines.bar(len(objects), "cross-validation", "objects",
+                            enabled=progress is not None) as shown:
+        for geometry in sorted({o.geometry for o in objects}):
+            train = [(o, s) for o, s in zip(objects, states)
+                     if o.geometry != geometry]
+            predictor = FlightPredictor.fit([o for o, _ in train],
+                                            [s for _, s in train],
+                                            scenario=scenario)
+            for obj, state in zip(objects, states):
+                if obj.geometry != geometry:
+                    continue
+                actual = as_watched(*sampled_flight(state, t0, obj, scenario))
+                row = {"object": obj.name, "geometry": geometry} | _compare(
+                    scenario, obj, ik, predictor.as_watched(obj, scenario),
+                    actual)
+                row |= state_errors(
+                    obj, predictor.predict_state(obj, scenario), state)
+                rows.append(row)
+                shown.update()
+                if progress is not None:
+                    progress_lines.say(f"cv {obj.name}: {row}", progress)
     return rows
 
 
@@ -443,7 +448,9 @@ def train_from_dataset(data_dir, scenario, out, *, ik, eval_objects=(),
                              progress=progress)
     rows = []
     t0 = free_time_s(scenario)
-    for obj in eval_objects:
+    for obj in progress_lines.iterate(eval_objects, len(eval_objects),
+                                      "evaluation", "objects",
+                                      enabled=progress is not None):
         watched = watch(scenario, obj, ik)
         row = {"object": obj.name, "set": obj.set} | _compare(
             scenario, obj, ik, predictor.as_watched(obj, scenario), watched)
@@ -456,7 +463,7 @@ def train_from_dataset(data_dir, scenario, out, *, ik, eval_objects=(),
                 obj, rigid_ride_state(scenario, obj), actual)
         rows.append(row)
         if progress is not None:
-            print(f"{obj.name}: {row}", file=progress, flush=True)
+            progress_lines.say(f"{obj.name}: {row}", progress)
     report = {"trained_on": len(objects), "model": "rigid ride",
               "residual": predictor.residual(),
               "cross_validation": {"summary": summarize(cv_rows),
