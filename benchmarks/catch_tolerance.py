@@ -89,12 +89,10 @@ def main(argv=None) -> int:
 
 def _run(args) -> int:
     from regrasp_drake.errors import InputError
-    from regrasp_drake.station.scenario import load_scenario
     from regrasp_drake.world.objects import resolve_object
     try:
         base, _ = scenario_args.load(args)
-        scenario = load_scenario(args.scenario, name=args.scenario_name,
-                                 text=args.text)
+        scenario, _ = scenario_args.load(args, over=args.text)
         obj = resolve_object(name=args.object)
         offsets = parse_offsets(args.offsets)
     except InputError as e:

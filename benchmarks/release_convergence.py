@@ -50,7 +50,7 @@ from regrasp_drake.errors import InputError, check_output_path
 from regrasp_drake.grid import append_rows, read_rows
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.episode.simulate import release_time
-from regrasp_drake.station.scenario import load_scenario, with_time_step
+from regrasp_drake.station.scenario import with_time_step
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world.objects import load_catalogue
 
@@ -83,18 +83,7 @@ def settings(args, fine_step, fine_text):
     coarse, _ = scenario_args.load(args)
     if fine_text is None:
         return coarse, with_time_step(coarse, fine_step)
-    text = args.scenario_text
-    merged = fine_text if text is None else _merged_text(text, fine_text)
-    return coarse, load_scenario(args.scenario, name=args.scenario_name,
-                                 text=merged)
-
-
-def _merged_text(text, fine_text) -> str:
-    """One YAML flow mapping: fine_text's fields over text's."""
-    from regrasp_drake.input_files import dump_yaml, parse_yaml
-    from regrasp_drake.station.scenario import _merged
-    return dump_yaml(_merged(parse_yaml(text, tags=True) or {},
-                             parse_yaml(fine_text, tags=True) or {}))
+    return coarse, scenario_args.load(args, over=fine_text)[0]
 
 
 def describe(scenario) -> dict:

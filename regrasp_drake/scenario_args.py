@@ -46,13 +46,19 @@ def add(p: argparse.ArgumentParser, *, text: bool = True,
                         "object's axis from its centre of mass, mm (default 0)")
 
 
-def load(args: argparse.Namespace, *, target_required: bool = False):
+def load(args: argparse.Namespace, *, target_required: bool = False,
+         over: str | None = None):
     """(scenario, label): the scenario the options of `args` (as `add`
     made them) give, loaded once and validated, and how it was given (for
     provenance: the flags and their values, the file's absolute path, or
-    "defaults"). Refuses --offset-mm without --target, and no --target
-    when `target_required`."""
-    from regrasp_drake.station.scenario import load_scenario, with_target
+    "defaults"). over: YAML fields over those of the options (a script's
+    own, for some of its runs; the label leaves them out). Refuses
+    --offset-mm without --target, and no --target when `target_required`."""
+    from regrasp_drake.station.scenario import (
+        load_scenario,
+        merged_text,
+        with_target,
+    )
     path = args.scenario
     name = getattr(args, "scenario_name", None)
     text = getattr(args, "scenario_text", None)
@@ -63,7 +69,10 @@ def load(args: argparse.Namespace, *, target_required: bool = False):
     if offset is not None and kind is None:
         raise InputError(f"--offset-mm: got {offset:g} without --target, "
                          "expected --target keep, flip, turn or any beside it")
-    scenario = load_scenario(path, name=name, text=text)
+    fields = text
+    if over is not None:
+        fields = over if text is None else merged_text(text, over)
+    scenario = load_scenario(path, name=name, text=fields)
     if kind is not None:
         from regrasp_drake.planning.grasp import Target
         scenario = with_target(scenario, Target(kind, offset or 0.0))

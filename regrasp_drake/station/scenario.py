@@ -504,6 +504,13 @@ def _merged(base: dict, override: dict) -> dict:
     return merged
 
 
+def merged_text(text: str, over: str) -> str:
+    """YAML text: `over`'s fields over `text`'s, mappings merged key by key
+    (as load_scenario merges its text over the scenario)."""
+    return dump_yaml(_merged(parse_yaml(text, tags=True) or {},
+                             parse_yaml(over, tags=True) or {}))
+
+
 def with_time_step(scenario: Scenario, time_step_s: float) -> Scenario:
     """A validated copy of `scenario` whose plant steps by time_step_s
     through the throw (the catch's step, catch_time_step_s, unchanged; null
