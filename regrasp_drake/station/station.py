@@ -13,7 +13,8 @@ with the loggers and Meshcat.
 
 Over 500 lines because it is the Diagram's builder: the station, the
 arm's controller and the finger servos, the catch controller, the loggers
-and the hand-over between plants; the physics is in plant.py, the start pose in start_pose.py.
+and the hand-over between plants; the physics is in plant.py, the start
+pose in start_pose.py.
 """
 
 import dataclasses as dc
