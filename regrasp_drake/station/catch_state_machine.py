@@ -35,7 +35,12 @@ arm's and fingers' references for the next step into discrete state, which
 the reference output ports expose directly. So no Python runs when the plant
 or the controller reads a reference (a computed output port would run
 several times per step), and the references are the same as if they were
-evaluated at the step's time.
+evaluated at the step's time. They come from a table of the next
+TABLE_STEPS steps' references, kept in discrete state and made again only
+when a transition changes the machine's state or the table runs out: a
+step between those only copies its row. Steps are counted from t = 0 (step
+n at n dt), so the transitions are on the sensors' samples whatever plant
+step the machine took over from (`continue_at`).
 
 On a continuous plant (plant_config.time_step 0, integrated by CENIC) the
 update runs at the sensors' rate and makes the transitions only; the
@@ -79,8 +84,9 @@ class Phase(enum.IntEnum):
 _THROW, _MOVE, _LOWER, _RETURN = (int(Phase.THROW), int(Phase.MOVE),
                                   int(Phase.LOWER), int(Phase.RETURN))
 
-# Layout of the discrete state vector.
-_PHASE, _T0, _T, _T_CLOSE, _T_OPEN, _H_DOWN, _TICK = range(7)
+# Layout of the discrete state vector. _TABLE_END: the first plant step
+# (counted from t = 0) whose references the table no longer holds.
+_PHASE, _T0, _T, _T_CLOSE, _T_OPEN, _H_DOWN, _TABLE_END = range(7)
 _QA = slice(7, 13)
 _QB = slice(13, 19)
 _QGRASP = slice(19, 25)
@@ -89,6 +95,12 @@ _QGRASP = slice(19, 25)
 _V0 = slice(25, 31)
 _A0 = slice(31, 37)
 _SIZE = 37
+
+# The table of references holds about this many plant steps (rounded to
+# whole sensor samples, at least one): long enough that it is made again
+# every few samples only, short enough that the copies of the discrete
+# state Drake makes at each update stay cheap.
+TABLE_STEPS = 32
 
 
 def lowered_pose(X_WG: RigidTransform, h_down: float) -> RigidTransform:
@@ -151,6 +163,32 @@ def preshape_closures(catch) -> np.ndarray:
     return closures
 
 
+class _Ramp:
+    """The fingers from q_from toward q_to at their speed (rad/s), with
+    what depends on the two postures only made once."""
+
+    def __init__(self, q_from, q_to, speed):
+        delta = q_to - q_from
+        self.q_from, self.q_to, self.speed = q_from, q_to, speed
+        self.distance = np.abs(delta)
+        self.longest = np.max(self.distance)
+        self.sign = np.sign(delta)
+        self.velocity = self.sign * speed
+
+    def at(self, elapsed):
+        """(q, v) `elapsed` s after the start (a number, or a column of k:
+        k × n arrays)."""
+        arrived = self.speed * elapsed >= self.longest
+        if np.all(arrived):
+            shape = np.shape(elapsed)[:1] + self.q_to.shape
+            return np.broadcast_to(self.q_to, shape), np.zeros(shape)
+        travel = np.minimum(self.distance,
+                            self.speed * np.maximum(elapsed, 0.0))
+        q = self.q_from + self.sign * travel
+        v = np.where(self.distance > travel, self.velocity, 0.0)
+        return np.where(arrived, self.q_to, q), np.where(arrived, 0.0, v)
+
+
 class CatchStateMachine(LeafSystem):
     """Inputs: `ir_levels` (13 readings, IR 1-3 palm then IR 4-13 approach),
     `catch_parameters` (h_catch, h_down in m), `X_WG` (abstract RigidTransform:
@@ -178,10 +216,17 @@ class CatchStateMachine(LeafSystem):
             self._closed - self._open)
         self._preshape = self._open + preshape_closures(scenario.catch) * (
             self._closed - self._open)
-        self._speed = finger_speed_rad_per_s
+        self._open_to_hold = _Ramp(self._open, self._hold,
+                                   finger_speed_rad_per_s)
+        self._hold_to_open = _Ramp(self._hold, self._open,
+                                   finger_speed_rad_per_s)
+        self._open_to_closed = _Ramp(self._open, self._closed,
+                                     finger_speed_rad_per_s)
+        self._open_to_preshape = _Ramp(self._open, self._preshape,
+                                       finger_speed_rad_per_s)
+        self._preshape_to_closed = _Ramp(self._preshape, self._closed,
+                                         finger_speed_rad_per_s)
         self._cushion = scenario.catch.return_from_motion
-        self._zeros6 = np.zeros(6)
-        self._zeros_hand = np.zeros(len(self._open))
         self._park_q = None if park_q is None else np.asarray(park_q, float)
         t = scenario.throw
         self._t_throw = t.settle_s
@@ -220,6 +265,7 @@ class CatchStateMachine(LeafSystem):
         x0[_T_OPEN] = self._t_release
         x0[_QA] = x0[_QB] = self._q_start
         x0[_T] = 1.0
+        x0[_TABLE_END] = 0  # no table yet: the first update makes it
         self._state = self.DeclareDiscreteState(x0)
         # The references for the current step: arm (q, v), arm acceleration,
         # fingers (q, v).
@@ -231,12 +277,22 @@ class CatchStateMachine(LeafSystem):
         self._dt = scenario.plant_config.time_step
         if self._dt > 0.0:
             self._ticks_per_sample = round(scenario.sensors.period_s / self._dt)
-            # The references of the steps to the next sensor sample
-            # (`_update`), one row per step.
-            self._table = self.DeclareDiscreteState(np.tile(
-                np.concatenate([q_arm, v_arm, a_arm,
-                                *self._hand_reference(x0, 0.0)]),
-                self._ticks_per_sample))
+            self._table_steps = self._ticks_per_sample * max(
+                1, round(TABLE_STEPS / self._ticks_per_sample))
+            # The table of references (`_references`), flattened: plant
+            # step n's references in row n % _table_steps, its columns the
+            # arm's (q, v), its v̇ and the fingers' (q, v). Each row's three
+            # reference groups are slices of the flattened table.
+            n_hand = len(self._open)
+            width = 18 + 2 * n_hand
+            self._table = self.DeclareDiscreteState(self._table_steps * width)
+            self._row_numbers = np.arange(self._table_steps, dtype=float)
+            self._columns = (slice(0, 6), slice(6, 12), slice(12, 18),
+                             slice(18, 18 + n_hand), slice(18 + n_hand, width))
+            self._row_slices = [(slice(r * width, r * width + 12),
+                                 slice(r * width + 12, r * width + 18),
+                                 slice(r * width + 18, (r + 1) * width))
+                                for r in range(self._table_steps)]
             self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
             self.DeclareStateOutputPort("arm_desired_state", self._arm_ref)
             self.DeclareStateOutputPort("arm_desired_acceleration",
@@ -261,20 +317,26 @@ class CatchStateMachine(LeafSystem):
             prerequisites_of_calc={self.xd_ticket()})
 
     # ---- references ----------------------------------------------------
-    def _references(self, x, ticks):
-        """The references the updates at plant steps `ticks` write for their
-        next steps, in state x: one row per tick, the arm's (q, v), its v̇
-        and the fingers' (q, v). Every row is what `_arm_reference` and
+    def _references(self, x, step):
+        """The table of references that the updates at the _table_steps
+        plant steps from `step` on write for their next steps, in state x:
+        step n's in row n % _table_steps, the arm's (q, v), its v̇ and the
+        fingers' (q, v). Every row is what `_arm_reference` and
         `_hand_reference` give at that time, computed for all rows at once
         (palm toss) or row by row (the finger throw's references switch on
         the time)."""
-        t = np.asarray(ticks, float)[:, None] * self._dt + self._dt
+        steps = step + (self._row_numbers - step) % self._table_steps
+        t = steps[:, None] * self._dt + self._dt
+        table = np.empty((self._table_steps, self._columns[-1].stop))
+        q, v, a, hand_q, hand_v = self._columns
         if self._toss:
-            return np.hstack([*self._arm_reference(x, t),
-                              *self._hand_reference(x, t)])
-        return np.array([np.concatenate([
-            *self._arm_reference(x, float(tk)),
-            *self._hand_reference(x, float(tk))]) for tk in t[:, 0]])
+            table[:, q], table[:, v], table[:, a] = self._arm_reference(x, t)
+            table[:, hand_q], table[:, hand_v] = self._hand_reference(x, t)
+            return table
+        for row, time in zip(table, t[:, 0].tolist()):
+            row[q], row[v], row[a] = self._arm_reference(x, time)
+            row[hand_q], row[hand_v] = self._hand_reference(x, time)
+        return table
 
     def _arm_reference(self, x, t):
         """The arm's (q, v, v̇) reference at time t in state x: at a number,
@@ -331,32 +393,16 @@ class CatchStateMachine(LeafSystem):
         toss, a column of k: k × 10 arrays)."""
         if not self._toss:
             if x[_PHASE] <= _THROW and t < self._t_release:
-                return self._ramp(self._open, self._hold, t - x[_T_CLOSE])
+                return self._open_to_hold.at(t - x[_T_CLOSE])
             if x[_PHASE] < _LOWER:
-                return self._ramp(self._hold, self._open,
-                                  t - self._t_release)
-            return self._ramp(self._open, self._closed, t - x[_T_CLOSE])
+                return self._hold_to_open.at(t - self._t_release)
+            return self._open_to_closed.at(t - x[_T_CLOSE])
         if x[_PHASE] <= _THROW:
             shape = np.shape(t)[:1] + self._open.shape
             return np.broadcast_to(self._open, shape), np.zeros(shape)
         if x[_PHASE] < _LOWER:
-            return self._ramp(self._open, self._preshape,
-                              t - self._t_throw_end)
-        return self._ramp(self._preshape, self._closed, t - x[_T_CLOSE])
-
-    def _ramp(self, q_from, q_to, elapsed):
-        """From q_from toward q_to at the fingers' speed, `elapsed` s after
-        the start (a number, or a column of k: k × n arrays)."""
-        delta = q_to - q_from
-        arrived = self._speed * elapsed >= np.max(np.abs(delta))
-        if np.all(arrived):
-            shape = np.shape(elapsed)[:1] + q_to.shape
-            return np.broadcast_to(q_to, shape), np.zeros(shape)
-        travel = np.minimum(np.abs(delta), self._speed * np.maximum(elapsed, 0.0))
-        moving = np.abs(delta) > travel
-        q = q_from + np.sign(delta) * travel
-        v = np.where(moving, np.sign(delta) * self._speed, 0.0)
-        return np.where(arrived, q_to, q), np.where(arrived, 0.0, v)
+            return self._open_to_preshape.at(t - self._t_throw_end)
+        return self._preshape_to_closed.at(t - x[_T_CLOSE])
 
     def _calc_arm_state(self, context, output: BasicVector):
         q, v, _ = self._arm_reference(
@@ -377,50 +423,52 @@ class CatchStateMachine(LeafSystem):
         output.SetAtIndex(0, context.get_discrete_state(self._state)[_PHASE])
 
     def continue_at(self, context) -> None:
-        """Counts this machine's steps in `context` (copied from a machine
-        of another plant step, at a sensor sample: station.continue_with) at
-        this machine's step, so that its transitions stay on the sensors'
-        samples, and makes its table of references at this step. (On a
-        continuous plant it makes its transitions at every update: nothing
-        to count.)"""
+        """Makes this machine's table of references in `context` (copied
+        from a machine of another plant step, at a sensor sample:
+        station.continue_with) for this machine's step, from the last
+        sensor sample on. (On a continuous plant there is no table.)"""
         if self._dt == 0.0:
             return
         x = context.get_discrete_state(self._state).value().copy()
-        tick = round(context.get_time() / self._dt)
-        x[_TICK] = tick
+        step = round(context.get_time() / self._dt)
+        sample = step - step % self._ticks_per_sample
+        x[_TABLE_END] = sample + self._table_steps
         context.SetDiscreteState(self._state, x)
-        # The table of references (not copied: its size is the other
-        # step's) for the steps from the last sample on.
-        sample = tick - tick % self._ticks_per_sample
-        context.SetDiscreteState(self._table, self._references(
-            x, np.arange(sample, sample + self._ticks_per_sample)).ravel())
+        context.SetDiscreteState(self._table,
+                                 self._references(x, sample).ravel())
 
     # ---- transitions ---------------------------------------------------
     def _update(self, context, discrete_state):
-        x = context.get_discrete_state(self._state).value().copy()
-        tick = int(x[_TICK])
-        k = tick % self._ticks_per_sample
-        status = EventStatus.Succeeded()
-        if k == 0:
-            status = self._transition(context, x, context.get_time())
-        x[_TICK] += 1
-        discrete_state.set_value(self._state, x)
+        """At every plant step (on a continuous plant, at every sensor
+        sample): at a sensor sample, the transitions; then the references
+        for the next step, this step's row of the table. Plant step n is at
+        t = n dt; the sensors sample at every _ticks_per_sample-th. Returns
+        None (success, to Drake) between samples."""
+        t = context.get_time()
         if self._dt == 0.0:  # references computed from the time
-            return status
-        # The references for the next step: at a sensor sample, those of
-        # every step up to the next sample (nothing they read changes in
-        # between), kept as a table.
-        if k == 0:
-            table = self._references(
-                x, np.arange(tick, tick + self._ticks_per_sample))
-            discrete_state.set_value(self._table, table.ravel())
+            return self._transition(
+                context, discrete_state.get_mutable_value(self._state), t)
+        step = round(t / self._dt)
+        row = step % self._table_steps
+        status = None
+        if row % self._ticks_per_sample:  # between samples
+            table = discrete_state.get_value(self._table)
         else:
-            table = context.get_discrete_state(self._table).value().reshape(
-                self._ticks_per_sample, -1)
-        row = table[k]
-        discrete_state.set_value(self._arm_ref, row[:12])
-        discrete_state.set_value(self._acc_ref, row[12:18])
-        discrete_state.set_value(self._hand_ref, row[18:])
+            x = discrete_state.get_mutable_value(self._state)
+            before = x.tobytes()
+            status = self._transition(context, x, t)
+            if x.tobytes() != before or step >= x[_TABLE_END]:
+                # The references read x and the time only: the table holds
+                # until x changes or its end.
+                table = self._references(x, step).ravel()
+                x[_TABLE_END] = step + self._table_steps
+                discrete_state.set_value(self._table, table)
+            else:
+                table = discrete_state.get_value(self._table)
+        arm, acceleration, hand = self._row_slices[row]
+        discrete_state.set_value(self._arm_ref, table[arm])
+        discrete_state.set_value(self._acc_ref, table[acceleration])
+        discrete_state.set_value(self._hand_ref, table[hand])
         return status
 
     def _transition(self, context, x, t):

@@ -30,7 +30,7 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import EventStatus, LeafSystem
 
 from regrasp_drake.station.catch_state_machine import Phase
-from regrasp_drake.world.robot import FINGER_LINKS, FINGERS, HAND_JOINTS
+from regrasp_drake.world.robot import FINGER_LINKS, HAND_JOINTS
 
 
 class Outcome(enum.IntEnum):
@@ -53,9 +53,9 @@ class DropReason(enum.IntEnum):
 (_OUTCOME, _IR_SINCE, _BUMPER_SINCE, _GRASP_T, _HOLD_T, _REASON,
  _FINGERS_SINCE) = range(7)
 _N_HAND = len(HAND_JOINTS)
-# The hand's joints of each finger (HAND_JOINTS order), the thumb first.
-_FINGER_JOINTS = [np.array([i for i, j in enumerate(HAND_JOINTS)
-                            if j.startswith(f + "_")]) for f in FINGERS]
+# Each finger's knuckle and distal joints (HAND_JOINTS order: each finger's
+# j1 then j2, the thumb first).
+_KNUCKLES, _DISTALS = slice(0, _N_HAND, 2), slice(1, _N_HAND, 2)
 
 
 class GraspMonitor(LeafSystem):
@@ -94,20 +94,23 @@ class GraspMonitor(LeafSystem):
         self.DeclareStateOutputPort("monitor_state", self._state)
 
     def _update(self, context, discrete_state):
-        x = context.get_discrete_state(self._state).value().copy()
+        """The sensors' grasp readings and the outcome, every sensor sample.
+        Returns None (Drake reads it as success) while running."""
         t = context.get_time()
         m = self._m
+        state = discrete_state.get_mutable_value(self._state)
+        x = state.tolist()
         phase = int(self._phase.Eval(context)[0])
-        poses = self._poses.Eval(context)
-        p_WO = poses[self._object].translation()
-        X_WP = poses[self._palm] @ self._X_BP
 
         levels = self._ir.Eval(context)[:3]
-        ir_grasp = bool(np.all(levels < m.palm_grasp_level))
+        low_1, low_2, low_3 = levels.tolist()
+        level = m.palm_grasp_level
+        ir_grasp = low_1 < level and low_2 < level and low_3 < level
         bumper = self._bumper.Eval(context)[0] > 0.5
+        # The cheap test first: a palm sensor sees the object.
         fingers_grasp = (m.read_fingers
-                         and self._fingers_closed_on_object(context)
-                         and (bumper or levels.min() < m.palm_grasp_level))
+                         and (bumper or ir_grasp or levels.min() < level)
+                         and self._fingers_closed_on_object(context))
         x[_IR_SINCE] = _since(x[_IR_SINCE], ir_grasp, t)
         x[_BUMPER_SINCE] = _since(x[_BUMPER_SINCE], bumper, t)
         x[_FINGERS_SINCE] = _since(x[_FINGERS_SINCE], fingers_grasp, t)
@@ -121,14 +124,16 @@ class GraspMonitor(LeafSystem):
             x[_HOLD_T] = t
 
         outcome, reason = Outcome.RUNNING, DropReason.NONE
+        poses = self._poses.Eval(context)
+        p_WO = poses[self._object].translation()
         near_ground = p_WO[2] < self._ground_z
         if self._watching:
             if near_ground:
                 outcome = Outcome.LANDED
         elif near_ground:
             outcome, reason = Outcome.DROPPED, DropReason.NEAR_GROUND
-        elif phase >= Phase.LOWER and (
-                X_WP.inverse() @ p_WO)[2] < -m.below_palm_m:
+        elif phase >= Phase.LOWER and ((poses[self._palm] @ self._X_BP)
+                                       .inverse() @ p_WO)[2] < -m.below_palm_m:
             outcome, reason = Outcome.DROPPED, DropReason.BELOW_PALM
         elif x[_HOLD_T] >= 0 and t - x[_HOLD_T] >= m.hold_s:
             held = x[_GRASP_T] >= 0 and (ir_grasp or bumper or fingers_grasp)
@@ -136,12 +141,12 @@ class GraspMonitor(LeafSystem):
                                (Outcome.DROPPED, DropReason.NOT_HELD))
         if outcome == Outcome.RUNNING and t >= m.max_time_s:
             outcome = Outcome.TIMEOUT
-        x[_OUTCOME] = outcome
-        x[_REASON] = reason
-        discrete_state.set_value(self._state, x)
+        x[_OUTCOME] = float(outcome)
+        x[_REASON] = float(reason)
+        state[:] = x
         if outcome != Outcome.RUNNING:
             return EventStatus.ReachedTermination(self, outcome.name.lower())
-        return EventStatus.Succeeded()
+        return None
 
     def _fingers_closed_on_object(self, context) -> bool:
         """Whether the thumb and another finger have closed on something:
@@ -153,10 +158,12 @@ class GraspMonitor(LeafSystem):
         goal = self._hand_goal.Eval(context)
         short = goal[:_N_HAND] - hand[:_N_HAND]
         speed = np.abs(hand[_N_HAND:])
+        # Per finger, its joints' largest: the joints' max, NaN as NumPy's.
+        short = np.maximum(short[_KNUCKLES], short[_DISTALS])
+        speed = np.maximum(speed[_KNUCKLES], speed[_DISTALS])
         m = self._m
-        stopped = [short[j].max() > m.finger_stall_rad
-                   and speed[j].max() < m.finger_rest_rad_per_s
-                   for j in _FINGER_JOINTS]
+        stopped = ((short > m.finger_stall_rad)
+                   & (speed < m.finger_rest_rad_per_s)).tolist()
         return stopped[0] and any(stopped[1:])
 
     @staticmethod
