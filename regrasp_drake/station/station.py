@@ -575,8 +575,9 @@ def continue_with(simulator: Simulator, episode: EpisodeDiagram,
         context_b = b.GetMyMutableContextFromRoot(context)
         for i in range(context_a.num_discrete_state_groups()):
             value = context_a.get_discrete_state(i).value()
-            # A group sized by the plant step (the catch state machine's
-            # table of references) is made again by `continue_at`, below.
+            # The catch state machine's table of references (computed at
+            # the other plant step) is made again by `continue_at`, below;
+            # a group of another size is left to it.
             if context_b.get_discrete_state(i).size() == value.size:
                 context_b.SetDiscreteState(i, value)
         for i in range(context_a.num_abstract_states()):
