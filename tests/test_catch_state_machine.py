@@ -60,10 +60,10 @@ class CushionedReturnTest(unittest.TestCase):
         s = load_scenario(
             text="{throw: {kind: palm_toss}, catch: {return_from_motion: "
                  f"{'true' if cushion else 'false'}}}}}")
+        q_grasp = np.array(s.throw.toss.start_q_rad)
         machine = csm.CatchStateMachine(
             s, self.ik, robot.HAND_OPEN, robot.HAND_CLOSED,
-            robot.FINGER_MAX_SPEED)
-        q_grasp = np.array(s.throw.toss.start_q_rad)
+            robot.FINGER_MAX_SPEED, park_q=q_grasp)
         q_low = q_grasp + [0.0, -0.05, 0.08, 0.0, -0.03, 0.0]
         x = np.zeros(csm._SIZE)
         x[csm._QGRASP] = q_grasp

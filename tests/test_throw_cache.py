@@ -1,15 +1,17 @@
 """The throw simulated once and gone on from (episode.ThrowCache): a watch
 and two catches with other poses and parameters give, bit for bit, the
-episodes simulated from the start."""
+episodes simulated from the start, the catches in the watch's diagram."""
 
 import dataclasses as dc
 import unittest
+from unittest import mock
 
 import numpy as np
 import torch
 from pydrake.math import RigidTransform
 
 from regrasp_drake import memo
+from regrasp_drake.episode import run
 from regrasp_drake.episode.run import run_episode
 from regrasp_drake.episode.simulate import THROWS, Logs, ThrowCache
 from regrasp_drake.planning.ik import ArmIk
@@ -49,8 +51,13 @@ class ThrowCacheTest(unittest.TestCase):
         fresh = self.episodes()
         THROWS.enabled = True
         hits = THROWS.hits
-        reused = self.episodes()
+        with mock.patch.object(run, "build_episode_diagram",
+                               wraps=run.build_episode_diagram) as build:
+            reused = self.episodes()
         self.assertEqual(THROWS.hits - hits, 2)  # both catches
+        # Two diagrams built, the watch's (the throw's step, then the
+        # catch's): the catches go on in the second.
+        self.assertEqual(build.call_count, 2)
         for a, b in zip(fresh, reused, strict=True):
             with self.subTest(outcome=a.outcome):
                 self.assertEqual(a.outcome, b.outcome)

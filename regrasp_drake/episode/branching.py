@@ -126,7 +126,7 @@ def _shared_run(scenario, obj, ik, X_WG, throws):
                                         catch_parameters=(0.0, 0.0))
         handover = hand_over(initialize(episode, scenario), episode,
                              scenario, rebuild)
-        throws.keep(key, handover)
+        throws.keep(key, handover, ik)
     simulator, episode, scenario = handover.now
     if handover.before is not None:
         machine = episode.controller.state_machine

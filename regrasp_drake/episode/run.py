@@ -173,7 +173,7 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
         simulator = initialize(episode, scenario)
         build_s = time.perf_counter() - t0
         handover = hand_over(simulator, episode, scenario, rebuild)
-        throws.keep(key, handover)
+        throws.keep(key, handover, ik)
     simulator, episode, scenario = handover.now
     message = handover.message
     if handover.running:

@@ -119,11 +119,14 @@ class ThrowCache:
     parameters or whether it watches: the throw's simulation to the release
     is the same for a watching throw and for every catch of the object. So
     the first episode of an object keeps its throw's simulator at the
-    handover (`hand_over`'s `before`: it is only read from there on), and a
-    later one builds its catch's diagram and goes on from that state
-    (`station.continue_with`, which copies it), with its own grasp pose and
-    parameters set: the same episode bit for bit (tested), without the
-    throw's 3 280 steps of 0.25 ms. Kept for the last `size` throws, in
+    handover (`hand_over`'s `before`: it is only read from there on) and
+    the diagram it went on in from there, and a later one goes on from that
+    state in that diagram (`station.continue_with`, which copies the
+    state), with its own grasp pose, parameters and whether it watches set
+    (CatchController.set_task): the same episode bit for bit (tested),
+    without the throw's 3 280 steps of 0.25 ms and without building a
+    diagram (a diagram holds no state: that is in each simulator's
+    context). Kept for the last `size` throws, in
     the process's cache THROWS (listed in memo.caches()) unless the caller
     passes its own; only for scenarios handed over at the release time
     (catch_time_step_s), fixed catch parameters and no Meshcat (which
@@ -135,9 +138,8 @@ class ThrowCache:
         self.enabled = True
         # key -> (simulator, episode, the catch's scenario), oldest first
         self._kept = {}
-        # (key, watching) -> (ik, the catch's diagram built for it): a
-        # diagram holds no state (that is in each simulator's context), so
-        # the later episodes of a throw go on in the same one.
+        # key -> (ik, the diagram at the catch's step the throw's episodes
+        # go on in, built with arm IK ik)
         self._diagrams = {}
         self.hits = 0
 
@@ -153,34 +155,38 @@ class ThrowCache:
                 hashlib.sha256(pickle.dumps(obj)).hexdigest(),
                 repr(perturbation))
 
-    def keep(self, key, handover: "Handover") -> None:
+    def keep(self, key, handover: "Handover", ik) -> None:
+        """Keeps the throw `handover` handed over (at the release time) and
+        the diagram it goes on in, built with arm IK `ik`."""
         if key is None or not handover.running or handover.before is None:
             return
         self._kept.pop(key, None)
         self._kept[key] = (*handover.before, handover.now[2])
+        self._diagrams[key] = (ik, handover.now[1])
         while len(self._kept) > self.size:
             del self._kept[next(iter(self._kept))]
         self._diagrams = {k: v for k, v in self._diagrams.items()
-                          if k[0] in self._kept}
+                          if k in self._kept}
 
     def resume(self, key, rebuild, X_WG, catch_parameters, ik):
-        """A Handover that goes on from the kept throw of `key` with the
-        diagram `rebuild(later)` builds (built once per throw, watching or
-        not, and arm IK `ik`), its grasp pose and catch parameters set;
-        None when there is none."""
+        """A Handover that goes on from the kept throw of `key` in the
+        diagram kept with it (or, for another arm IK than `ik`, the one
+        `rebuild(later)` builds), with its grasp pose X_WG (None: a
+        watching throw) and catch parameters set; None when there is
+        none."""
         if key is None or key not in self._kept:
             return None
         simulator, episode, later = self._kept[key]
-        built = self._diagrams.get((key, X_WG is None))
+        built = self._diagrams.get(key)
         if built is None or built[0] is not ik:
-            built = self._diagrams[key, X_WG is None] = (ik, rebuild(later))
+            built = self._diagrams[key] = (ik, rebuild(later))
         other = built[1]
         target = continue_with(simulator, episode, other, later)
-        # continue_with copied the kept throw's pose and parameters.
+        # continue_with copied the kept throw's task.
         other.controller.set_task(
             target.get_mutable_context(),
             X_WG=X_WG if X_WG is not None else RigidTransform(),
-            catch_parameters=catch_parameters)
+            catch_parameters=catch_parameters, watching=X_WG is None)
         self.hits += 1
         return Handover((target, other, later), (simulator, episode), "",
                         True, tuple(float(p) for p in catch_parameters))

@@ -198,10 +198,13 @@ class CatchStateMachine(LeafSystem):
     """
 
     def __init__(self, scenario, ik: ArmIk, hand_open, hand_closed,
-                 finger_speed_rad_per_s: float, park_q=None,
+                 finger_speed_rad_per_s: float, park_q,
+                 watching: bool = False,
                  perturbation: ThrowPerturbation = ThrowPerturbation()):
-        """`park_q`, when given, makes this a watching throw: after the
-        release the arm goes to `park_q` and never tries to catch.
+        """`park_q`: where the arm goes after the release on a watching
+        throw, which never tries to catch. `watching`: whether this is one
+        (a parameter: `set_watching` sets it in a context, so that one
+        diagram serves watching and catching episodes alike).
         `perturbation`: this throw's release noise (default none)."""
         LeafSystem.__init__(self)
         self._ik = ik
@@ -227,7 +230,9 @@ class CatchStateMachine(LeafSystem):
         self._preshape_to_closed = _Ramp(self._preshape, self._closed,
                                          finger_speed_rad_per_s)
         self._cushion = scenario.catch.return_from_motion
-        self._park_q = None if park_q is None else np.asarray(park_q, float)
+        self._park_q = np.asarray(park_q, float)
+        self._watching = self.DeclareNumericParameter(
+            BasicVector([float(watching)]))
         t = scenario.throw
         self._t_throw = t.settle_s
         self._noise = None if perturbation.is_zero() else perturbation
@@ -422,6 +427,16 @@ class CatchStateMachine(LeafSystem):
     def _calc_phase(self, context, output: BasicVector):
         output.SetAtIndex(0, context.get_discrete_state(self._state)[_PHASE])
 
+    def watching(self, context) -> bool:
+        """Whether the episode in this machine's `context` only watches."""
+        return context.get_numeric_parameter(self._watching)[0] != 0.0
+
+    def set_watching(self, context, watching: bool) -> None:
+        """Makes the episode in this machine's `context` a watching throw
+        (True) or a catch (False)."""
+        context.get_mutable_numeric_parameter(self._watching).SetAtIndex(
+            0, float(watching))
+
     def continue_at(self, context) -> None:
         """Makes this machine's table of references in `context` (copied
         from a machine of another plant step, at a sensor sample:
@@ -479,7 +494,7 @@ class CatchStateMachine(LeafSystem):
             x[_PHASE] = Phase.THROW
         elif phase == Phase.THROW and t >= self._t_throw_end:
             q_end, v_end, a_end = self._throw_reference(self._throw_s)
-            if self._park_q is not None:
+            if self.watching(context):
                 q_target = self._park_q
             else:
                 X_WG = self._X_WG.Eval(context)
@@ -495,7 +510,7 @@ class CatchStateMachine(LeafSystem):
             if self._toss:  # the move takes over from the moving arm
                 x[_V0], x[_A0] = v_end, a_end
         elif (phase == Phase.MOVE and segment_done
-              and self._park_q is None and self._at_grasp(context, x)):
+              and not self.watching(context) and self._at_grasp(context, x)):
             x[_PHASE] = Phase.WAIT
         elif phase == Phase.WAIT:
             h_catch, h_down = self._params.Eval(context)

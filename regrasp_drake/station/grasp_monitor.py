@@ -27,7 +27,7 @@ import enum
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
-from pydrake.systems.framework import EventStatus, LeafSystem
+from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
 from regrasp_drake.station.catch_state_machine import Phase
 from regrasp_drake.world.robot import FINGER_LINKS, HAND_JOINTS
@@ -69,7 +69,9 @@ class GraspMonitor(LeafSystem):
                  X_BP_palm, object_clearance_m: float, watching: bool):
         """`X_BP_palm`: the palm surface frame P in the palm body B;
         `object_clearance_m`: the object's largest distance from its frame
-        origin (it is near the ground when its origin is this high)."""
+        origin (it is near the ground when its origin is this high);
+        `watching`: whether the episode only watches (a parameter,
+        `set_watching` sets it in a context)."""
         LeafSystem.__init__(self)
         m = scenario.monitor
         self._m = m
@@ -77,7 +79,8 @@ class GraspMonitor(LeafSystem):
         self._palm = int(palm_body_index)
         self._X_BP = X_BP_palm
         self._ground_z = object_clearance_m + m.ground_clearance_m
-        self._watching = watching
+        self._watching = self.DeclareNumericParameter(
+            BasicVector([float(watching)]))
         self._ir = self.DeclareVectorInputPort("ir_levels", 13)
         self._bumper = self.DeclareVectorInputPort("bumper", 1)
         self._hand = self.DeclareVectorInputPort("hand_state", 2 * _N_HAND)
@@ -92,6 +95,12 @@ class GraspMonitor(LeafSystem):
         self.DeclarePeriodicDiscreteUpdateEvent(
             scenario.sensors.period_s, 0.0, self._update)
         self.DeclareStateOutputPort("monitor_state", self._state)
+
+    def set_watching(self, context, watching: bool) -> None:
+        """Judges the episode in this monitor's `context` as a watching
+        throw (True: landed) or a catch (False)."""
+        context.get_mutable_numeric_parameter(self._watching).SetAtIndex(
+            0, float(watching))
 
     def _update(self, context, discrete_state):
         """The sensors' grasp readings and the outcome, every sensor sample.
@@ -127,7 +136,7 @@ class GraspMonitor(LeafSystem):
         poses = self._poses.Eval(context)
         p_WO = poses[self._object].translation()
         near_ground = p_WO[2] < self._ground_z
-        if self._watching:
+        if context.get_numeric_parameter(self._watching)[0] != 0.0:
             if near_ground:
                 outcome = Outcome.LANDED
         elif near_ground:

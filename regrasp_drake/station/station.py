@@ -148,14 +148,20 @@ class CatchController:
     parameters: ConstantVectorSource | MlpSystem
 
     def set_task(self, root_context, *, X_WG: RigidTransform | None = None,
-                 catch_parameters=None) -> None:
+                 catch_parameters=None, watching: bool | None = None) -> None:
         """Sets what this episode does in the diagram's context
         `root_context`, before the state machine reads it (at the release
-        time: X_WG; at the trigger: the parameters): the palm's grasp pose
-        X_WG and the fixed catch parameters (h_catch, h_down), [m]. None
-        leaves a value as it is. The one place an episode's task is written
-        into a running context (a kept throw going on as another episode, a
-        catch planned at the release, a forked cell)."""
+        time: X_WG and whether it watches; at the trigger: the parameters):
+        the palm's grasp pose X_WG, the fixed catch parameters (h_catch,
+        h_down), [m], and `watching` (a watching throw parks the arm and
+        never catches). None leaves a value as it is. The one place an
+        episode's task is written into a running context (a kept throw going
+        on as another episode, a catch planned at the release, a forked
+        cell)."""
+        if watching is not None:
+            for system in (self.state_machine, self.monitor):
+                system.set_watching(
+                    system.GetMyMutableContextFromRoot(root_context), watching)
         if X_WG is not None:
             self.grasp_pose.set_pose(
                 self.grasp_pose.GetMyMutableContextFromRoot(root_context),
@@ -351,14 +357,14 @@ def add_catch_controller(builder: DiagramBuilder, station: Station,
         builder.Connect(features.get_output_port(), params.get_input_port())
 
     # The catch state machine (Fig. 9).
+    # A watching throw parks the arm out of the flight's way (set_task
+    # makes a diagram watch or catch).
     watching = X_WG is None
-    q_park = None
-    if watching:
-        q_park = throw.end_state(scenario.throw, ik)[0].copy()
-        q_park[0] += scenario.throw.park_joint1_offset_rad
+    q_park = throw.end_state(scenario.throw, ik)[0].copy()
+    q_park[0] += scenario.throw.park_joint1_offset_rad
     machine = builder.AddNamedSystem("catch_state_machine", CatchStateMachine(
         scenario, ik, robot.HAND_OPEN, robot.HAND_CLOSED,
-        robot.FINGER_MAX_SPEED, park_q=q_park,
+        robot.FINGER_MAX_SPEED, park_q=q_park, watching=watching,
         perturbation=ThrowPerturbation.draw(scenario.throw.noise, throw_number)))
     grasp = builder.AddNamedSystem("X_WG", GraspPoseSource(
         X_WG if X_WG is not None else RigidTransform()))
