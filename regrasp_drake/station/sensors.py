@@ -32,6 +32,8 @@ _HIT_TOLERANCE_M = 1e-4
 # A ray that grazes a surface takes many small steps; past this many, it is
 # counted as a miss.
 _MAX_TRACE_STEPS = 200
+# -1 and +1, to compute a quadratic's two roots -b ∓ √disc at once.
+_MINUS_PLUS = np.array([-1.0, 1.0])[:, None, None]
 
 
 def quantize(distance_m: float, range_m: float, levels: int = 1000) -> int:
@@ -96,125 +98,120 @@ def trace_ray(
     return math.inf
 
 
-def _sphere_hits(o, d, center, radius):
-    """Entry distance along rays (origins o, unit directions d: N×3) into
-    balls (centers: 3 or M×3, radii: scalar or M, in the rays' frame): N, or
-    N×M for M balls; 0 for an origin inside, inf for a miss."""
-    oc = o[:, None, :] - np.atleast_2d(center)[None]
-    b = np.einsum("nmk,nk->nm", oc, d)
-    r2 = np.square(radius)
-    c = np.einsum("nmk,nmk->nm", oc, oc) - r2
-    disc = b * b - c
-    root = np.sqrt(np.maximum(disc, 0.0))
-    hit = (disc >= 0) & (root - b >= 0)
-    entry = np.where(c <= 0, 0.0,
-                     np.where(hit, np.maximum(-b - root, 0.0), np.inf))
-    return entry if np.ndim(center) == 2 else entry[:, 0]
-
-
-def _interval_entry(enter, leave):
-    """The entry distance (>= 0) of rays into a convex set they cross on
-    [enter, leave]; inf when they miss it or it lies behind them."""
-    hit = (enter <= leave) & (leave >= 0)
-    return np.where(hit, np.maximum(enter, 0.0), np.inf)
-
-
-def _slab(o, d, half):
-    """Per ray and slab, the parameter interval [lo, hi] inside |x| <= half
-    (o, d: the rays' coordinate along the slab's axis; half broadcast)."""
-    inside = np.abs(o) <= half
-    parallel = np.abs(d) < 1e-15
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t1 = (-half - o) / d
-        t2 = (half - o) / d
-    lo = np.where(parallel, np.where(inside, -np.inf, np.inf),
-                  np.minimum(t1, t2))
-    hi = np.where(parallel, np.where(inside, np.inf, -np.inf),
-                  np.maximum(t1, t2))
-    return lo, hi
-
-
 class _CastTargets:
     """Closed-form ray casting against boxes, spheres, cylinders and capsules
-    fixed in one frame F: every ray against every shape in a handful of
-    array operations (a capsule is its cylinder and its two end balls)."""
+    fixed in one frame F: every ray against every shape in two batches of
+    array operations, one for balls (spheres, and a capsule's end balls) and
+    one for solids (boxes, cylinders, and a capsule's cylinder).
+
+    A solid is, in its own frame G, the points within three slabs
+    |x_k| <= half_k and inside the infinite cylinder x_0² + x_1² <= r² about
+    G's z axis: a box has r = inf, a cylinder half_0 = half_1 = inf. A ray is
+    within an unbounded slab or cylinder over its whole length, so that bound
+    changes no entry distance."""
 
     def __init__(self, shapes):
         """`shapes`: (X_FG, shape) pairs, every shape a Drake Box, Sphere,
         Cylinder or Capsule."""
-        spheres, boxes, cylinders = [], [], []
+        balls, solids = [], []
         for X_FG, shape in shapes:
             R_GF = X_FG.rotation().matrix().T
             p_FG = X_FG.translation()
             if isinstance(shape, Sphere):
-                spheres.append((p_FG, shape.radius()))
+                balls.append((p_FG, shape.radius()))
             elif isinstance(shape, Box):
-                boxes.append((R_GF, p_FG, shape.size() / 2.0))
+                solids.append((R_GF, p_FG, shape.size() / 2.0, np.inf))
             else:
                 half = shape.length() / 2.0
-                cylinders.append((R_GF, p_FG, shape.radius(), half))
+                solids.append((R_GF, p_FG, (np.inf, np.inf, half), shape.radius()))
                 if isinstance(shape, Capsule):
                     z_F = R_GF[2]
-                    spheres += [(p_FG + half * z_F, shape.radius()),
-                                (p_FG - half * z_F, shape.radius())]
-
-        def stack(rows, k):
-            return np.array([row[k] for row in rows], float)
-        self._spheres = spheres and (stack(spheres, 0), stack(spheres, 1))
-        self._boxes = boxes and (stack(boxes, 0), stack(boxes, 1),
-                                 stack(boxes, 2))
-        self._cylinders = cylinders and (
-            stack(cylinders, 0), stack(cylinders, 1), stack(cylinders, 2),
-            stack(cylinders, 3))
+                    balls += [(p_FG + half * z_F, shape.radius()),
+                              (p_FG - half * z_F, shape.radius())]
+        self._balls = None
+        if balls:
+            p_FC, radius = (np.array(column, float) for column in zip(*balls))
+            self._balls = (p_FC, np.square(radius))
+        self._solids = None
+        if solids:
+            R_GF, p_FG, half, radius = (np.array(column, float)
+                                        for column in zip(*solids))
+            half = half[:, None, :]
+            self._solids = (
+                R_GF,
+                # Subtracted from the rays (origins, directions): p_FG, 0.
+                np.stack((p_FG, np.zeros_like(p_FG)), axis=1)[:, :, None, :],
+                np.stack((-half, half)),  # each slab's two faces
+                half,
+                np.square(radius)[:, None])
 
     @staticmethod
     def supports(shape) -> bool:
         return isinstance(shape, (Box, Sphere, Cylinder, Capsule))
 
-    def entry(self, o, d) -> np.ndarray:
-        """The distance along each ray (origins o, unit directions d: N×3,
-        in F) to where it enters the first shape: 0 for an origin inside
-        one, inf for a miss."""
-        entries = [np.full(len(o), np.inf)]
-        if self._spheres:
-            entries.append(_sphere_hits(o, d, *self._spheres).min(axis=1))
-        for shapes, interval in ((self._boxes, self._box_interval),
-                                 (self._cylinders, self._cylinder_interval)):
-            if shapes:
-                R_GF, p_FG = shapes[0], shapes[1]
-                o_G = np.einsum("mij,mnj->mni", R_GF, o[None] - p_FG[:, None])
-                d_G = np.einsum("mij,nj->mni", R_GF, d)
-                entries.append(_interval_entry(
-                    *interval(o_G, d_G, *shapes[2:])).min(axis=0))
-        return np.minimum.reduce(entries)
+    def entry(self, rays) -> np.ndarray:
+        """The distance along each ray (`rays`: origins and unit directions,
+        2×N×3, in F) to where it enters the first shape: 0 for an origin
+        inside one, inf for a miss. Call it under
+        np.errstate(divide="ignore", invalid="ignore"): a ray that misses a
+        shape's quadric computes nan, a ray parallel to a slab divides by
+        zero."""
+        entries = [cast(rays, *targets) for cast, targets in (
+            (_ball_entry, self._balls), (_solid_entry, self._solids))
+            if targets is not None]
+        return entries[0] if len(entries) == 1 else np.minimum(*entries)
 
-    @staticmethod
-    def _box_interval(o, d, half):
-        """[enter, leave] of rays (M×N×3, each box's frame) in the boxes
-        (half sizes M×3)."""
-        lo, hi = _slab(o, d, half[:, None, :])
-        return lo.max(axis=2), hi.min(axis=2)
 
-    @staticmethod
-    def _cylinder_interval(o, d, radius, half_length):
-        """[enter, leave] of rays (M×N×3, each cylinder's frame, its axis
-        z) in the solid cylinders (radii and half lengths: M)."""
-        enter, leave = _slab(o[..., 2], d[..., 2], half_length[:, None])
-        a = d[..., 0] ** 2 + d[..., 1] ** 2
-        b = o[..., 0] * d[..., 0] + o[..., 1] * d[..., 1]
-        c = o[..., 0] ** 2 + o[..., 1] ** 2 - (radius * radius)[:, None]
-        disc = b * b - a * c
-        parallel = a < 1e-30
-        with np.errstate(divide="ignore", invalid="ignore"):
-            root = np.sqrt(np.maximum(disc, 0.0))
-            lo = np.where(parallel, np.where(c <= 0, -np.inf, np.inf),
-                          (-b - root) / a)
-            hi = np.where(parallel, np.where(c <= 0, np.inf, -np.inf),
-                          (-b + root) / a)
-        miss = ~parallel & (disc < 0)
-        lo = np.where(miss, np.inf, lo)
-        hi = np.where(miss, -np.inf, hi)
-        return np.maximum(enter, lo), np.minimum(leave, hi)
+def _ball_entry(rays, p_FC, r2):
+    """Entry distance of N rays (origins and unit directions, 2×N×3) into
+    the nearest of M balls (centres p_FC: M×3, squared radii r2: M or one for
+    all): N; 0 for an origin inside one, inf for a miss."""
+    o, d = rays
+    p_CS = o[:, None, :] - p_FC  # N×M×3
+    b = np.einsum("nmk,nk->nm", p_CS, d)
+    c = np.einsum("nmk,nmk->nm", p_CS, p_CS) - r2
+    disc = b * b - c
+    root = np.sqrt(disc)  # nan where the line misses the ball
+    # Where the ray leaves the ball: behind its origin, or nan, is a miss.
+    leave = root - b
+    entry = np.where(leave >= 0, np.maximum(-b - root, 0.0), np.inf)
+    return np.minimum.reduce(np.where(c <= 0, 0.0, entry), axis=1)
+
+
+def _solid_entry(rays, R_GF, shift, faces, half, r2):
+    """Entry distance of N rays (origins and unit directions, 2×N×3, in F)
+    into the nearest of M solids (see _CastTargets: rotations R_GF, shift
+    p_FG and 0, slab faces ∓half, half sizes, squared radii), each ray
+    clipped to the three slabs and the cylinder: N; 0 for an origin inside
+    one, inf for a miss."""
+    rays_G = np.einsum("mij,mpnj->pmni", R_GF, rays - shift)  # 2×M×N×3
+    o, d = rays_G
+    # Slabs: the ray's parameters at each slab's two faces.
+    t = (faces - o) / d
+    lo, hi = np.minimum(t[0], t[1]), np.maximum(t[0], t[1])
+    parallel = np.abs(d) < 1e-15
+    if parallel.any():  # in the slab over the whole ray, or nowhere
+        inside = np.abs(o) <= half
+        lo = np.where(parallel, np.where(inside, -np.inf, np.inf), lo)
+        hi = np.where(parallel, np.where(inside, np.inf, -np.inf), hi)
+    enter, leave = np.maximum.reduce(lo, axis=2), np.minimum.reduce(hi, axis=2)
+    # Cylinder: |x_xy + s·d_xy|² = r², a·s² + 2b·s + c = 0.
+    xy = rays_G[..., :2]
+    products = xy[:, None] * xy[None]
+    (oo, b), (_, a) = products[..., 0] + products[..., 1]
+    c = oo - r2
+    disc = b * b - a * c
+    root = np.sqrt(disc)  # nan where the line misses the cylinder
+    lo, hi = (-b + _MINUS_PLUS * root) / a
+    along_axis = a < 1e-30
+    if along_axis.any():  # in the cylinder over the whole ray, or nowhere
+        inside = c <= 0
+        lo = np.where(along_axis, np.where(inside, -np.inf, np.inf), lo)
+        hi = np.where(along_axis, np.where(inside, np.inf, -np.inf), hi)
+    enter, leave = np.maximum(enter, lo), np.minimum(leave, hi)
+    # Hit: a non-empty interval not wholly behind the origin (nan: a miss).
+    hit = (enter <= leave) & (leave >= 0)
+    return np.minimum.reduce(np.where(hit, np.maximum(enter, 0.0), np.inf))
 
 
 def ray_entry(shape, o, d) -> np.ndarray:
@@ -224,8 +221,9 @@ def ray_entry(shape, o, d) -> np.ndarray:
     Returns None for other shapes."""
     if not _CastTargets.supports(shape):
         return None
-    return _CastTargets([(RigidTransform(), shape)]).entry(
-        np.asarray(o, float), np.asarray(d, float))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return _CastTargets([(RigidTransform(), shape)]).entry(
+            np.array([o, d], float))
 
 
 class InfraredSensors(LeafSystem):
@@ -252,8 +250,9 @@ class InfraredSensors(LeafSystem):
     ):
         """`target_bound`, optional: (body, radius_m), a sphere about the
         body's frame origin that holds every target geometry. Rays that miss
-        it read nothing without tracing, and the others start tracing where
-        they enter it (the same readings, far fewer distance queries).
+        it read nothing without casting or tracing, and the others start
+        tracing where they enter it (the same readings, far fewer distance
+        queries).
 
         `inspector`, optional: the SceneGraph's model inspector. With it,
         target boxes, spheres, cylinders and capsules are ray-cast in closed
@@ -297,6 +296,10 @@ class InfraredSensors(LeafSystem):
         if target_bound is not None:
             body, radius_m = target_bound
             self._bound = (plant.GetBodyFrameIdOrThrow(body.index()), float(radius_m))
+        # The geometry frames whose poses a sample reads, each once.
+        self._target_frames = list(dict.fromkeys(
+            [frame_id for frame_id, _ in self._cast]
+            + ([self._bound[0]] if self._bound is not None else [])))
         # Per sensor: the geometry frame of its body and its fixed pose X_BS.
         self._frame_ids = []
         self._X_BS = []
@@ -305,15 +308,18 @@ class InfraredSensors(LeafSystem):
             self._frame_ids.append(plant.GetBodyFrameIdOrThrow(body.index()))
             self._X_BS.append(frame.GetFixedPoseInBodyFrame())
         # The same rays grouped by body frame (usually all on the palm), as
-        # origins p_BS and directions z_BS (k×3), so that one pose query per
-        # body places them all.
+        # origins p_BS and directions z_BS (2×k×3), so that one pose query per
+        # body places them all; `_order` puts the groups' rays back in
+        # sensor order.
         self._ray_groups = []
+        grouped = []
         for frame_id in dict.fromkeys(self._frame_ids):
             index = [i for i, f in enumerate(self._frame_ids) if f == frame_id]
-            self._ray_groups.append((
-                frame_id, np.array(index),
-                np.array([self._X_BS[i].translation() for i in index]),
-                np.array([self._X_BS[i].rotation().col(2) for i in index])))
+            grouped += index
+            self._ray_groups.append((frame_id, np.array([
+                [self._X_BS[i].translation() for i in index],
+                [self._X_BS[i].rotation().col(2) for i in index]])))
+        self._order = np.argsort(grouped)
         self._ranges = np.array(self._ranges_m)
 
         self._query_port = self.DeclareAbstractInputPort(
@@ -340,53 +346,61 @@ class InfraredSensors(LeafSystem):
 
     def read_levels(self, query_object: QueryObject) -> np.ndarray:
         """Returns each sensor's level for the geometry poses in query_object."""
+        rays = self._rays(query_object)
+        X_WF = {frame_id: query_object.GetPoseInWorld(frame_id)
+                for frame_id in self._target_frames}
         distances = np.full(len(self._ranges_m), np.inf)
-        p_WS, z_W = self._rays(query_object)
-        # Rays that cannot reach the target bound read nothing: when no ray
-        # can (the object is far from the hand), nothing else is computed.
-        live = np.ones(len(p_WS), bool)
-        if self._bound is not None:
-            p_WC = query_object.GetPoseInWorld(self._bound[0]).translation()
-            live = _sphere_hits(p_WS, z_W, p_WC, self._bound[1]) < self._ranges
-            if not live.any():
-                return np.full(len(p_WS), float(self._levels))
-        if self._cast:
-            distances[live] = self._cast_distances(
-                query_object, p_WS[live], z_W[live])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            if self._bound is None:
+                if self._cast:
+                    distances = self._cast_distances(X_WF, rays)
+            else:
+                # Rays that cannot reach the target bound read nothing: when
+                # no ray can (the object is far from the hand), nothing else
+                # is computed.
+                frame_id, radius_m = self._bound
+                live = _ball_entry(rays, X_WF[frame_id].translation()[None],
+                                   radius_m * radius_m) < self._ranges
+                if not live.any():
+                    return np.full(len(self._ranges_m), float(self._levels))
+                if self._cast:
+                    distances[live] = self._cast_distances(X_WF, rays[:, live])
         if self._target_ids:
             distances = np.minimum(distances, self._trace_distances(query_object))
         return self._quantize(distances)
 
+    def _cast_distances(self, X_WF, rays):
+        """Closed-form distances along the rays (origins and directions,
+        2×N×3, in the world) to the first cast target (inf: none), for the
+        target frames' poses X_WF."""
+        distances = []
+        for frame_id, targets in self._cast:
+            rays_F = rays.copy()
+            rays_F[0] -= X_WF[frame_id].translation()
+            # Row vectors: p_F = R_FW (p_W - p_WF) is (p_W - p_WF) R_WF.
+            distances.append(targets.entry(
+                rays_F @ X_WF[frame_id].rotation().matrix()))
+        return np.minimum.reduce(distances)
+
     def _quantize(self, distances_m: np.ndarray) -> np.ndarray:
-        """`quantize` of every sensor's distance (m) at its range."""
-        with np.errstate(invalid="ignore"):
-            level = np.floor(distances_m / self._ranges * self._levels)
-        in_range = distances_m < self._ranges  # False for inf and nan
-        return np.where(in_range, np.clip(level, 0, self._levels),
+        """`quantize` of every sensor's distance (m, >= 0) at its range: the
+        floor lies in [0, levels], for a distance below the range."""
+        return np.where(distances_m < self._ranges,  # False for inf and nan
+                        np.floor(distances_m / self._ranges * self._levels),
                         float(self._levels))
 
-    def _rays(self, query_object):
-        """Every sensor's ray in the world: origins and unit directions (N×3)."""
-        p_WS = np.empty((len(self._ranges_m), 3))
-        z_W = np.empty_like(p_WS)
-        for frame_id, index, p_BS, z_BS in self._ray_groups:
+    def _rays(self, query_object) -> np.ndarray:
+        """Every sensor's ray in the world: origins p_WS and unit directions
+        z_W, 2×N×3."""
+        rays = []
+        for frame_id, rays_B in self._ray_groups:
             X_WB = query_object.GetPoseInWorld(frame_id)
-            R_WB = X_WB.rotation().matrix()
-            p_WS[index] = p_BS @ R_WB.T + X_WB.translation()
-            z_W[index] = z_BS @ R_WB.T
-        return p_WS, z_W
-
-    def _cast_distances(self, query_object, p_WS, z_W):
-        """Closed-form distances along the rays (p_WS, z_W: N×3) to the first
-        cast target (inf: none)."""
-        distances = np.full(len(p_WS), np.inf)
-        for frame_id, targets in self._cast:
-            X_WF = query_object.GetPoseInWorld(frame_id)
-            R_WF = X_WF.rotation().matrix()
-            # Row vectors: p_F = R_FW (p_W - p_WF) is (p_W - p_WF) R_WF.
-            distances = np.minimum(distances, targets.entry(
-                (p_WS - X_WF.translation()) @ R_WF, z_W @ R_WF))
-        return distances
+            rays_W = rays_B @ X_WB.rotation().matrix().T
+            rays_W[0] += X_WB.translation()
+            rays.append(rays_W)
+        if len(rays) == 1:
+            return rays[0]
+        return np.concatenate(rays, axis=1)[:, self._order]
 
     def _trace_distances(self, query_object):
         """Sphere-traced distances to the first traced target (inf: none)."""
@@ -460,26 +474,21 @@ class TactileBumper(LeafSystem):
 
     def is_touching(self, contact_results: ContactResults) -> bool:
         """Returns True if any contact pairs the bumper with a target."""
-        pairs = [
-            (info.point_pair().id_A, info.point_pair().id_B)
-            for info in map(
-                contact_results.point_pair_contact_info,
-                range(contact_results.num_point_pair_contacts()),
-            )
-        ]
-        pairs += [
-            (info.contact_surface().id_M(), info.contact_surface().id_N())
-            for info in map(
-                contact_results.hydroelastic_contact_info,
-                range(contact_results.num_hydroelastic_contacts()),
-            )
-        ]
-        for id_A, id_B in pairs:
-            if (id_A in self._bumper_ids and id_B in self._target_ids) or (
-                id_B in self._bumper_ids and id_A in self._target_ids
-            ):
+        for i in range(contact_results.num_point_pair_contacts()):
+            pair = contact_results.point_pair_contact_info(i).point_pair()
+            if self._pairs_bumper(pair.id_A, pair.id_B):
+                return True
+        for i in range(contact_results.num_hydroelastic_contacts()):
+            surface = contact_results.hydroelastic_contact_info(i).contact_surface()
+            if self._pairs_bumper(surface.id_M(), surface.id_N()):
                 return True
         return False
+
+    def _pairs_bumper(self, id_A: GeometryId, id_B: GeometryId) -> bool:
+        """Whether one of the two geometries is the bumper's, the other a
+        target."""
+        return (id_A in self._bumper_ids and id_B in self._target_ids) or (
+            id_B in self._bumper_ids and id_A in self._target_ids)
 
     def _sample(self, context, discrete_state):
         touching = self.is_touching(self._contact_port.Eval(context))
