@@ -18,6 +18,7 @@ from regrasp_drake.station.grasp_monitor import GraspMonitor
 from regrasp_drake.station.scenario import (
     Scenario,
     catch_phase_scenario,
+    hands_over,
     scenario_digest,
 )
 from regrasp_drake.station.station import (
@@ -147,7 +148,7 @@ class ThrowCache:
         """The throw's key, or None when it cannot be reused (see above)."""
         if (not self.enabled or meshcat is not None
                 or catch_parameters is None
-                or catch_phase_scenario(scenario) is None):
+                or not hands_over(scenario)):
             return None
         perturbation = ThrowPerturbation.draw(scenario.throw.noise,
                                               throw_number)

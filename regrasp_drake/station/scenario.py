@@ -533,14 +533,20 @@ def with_catch_time_step(scenario: Scenario, time_step_s: float) -> Scenario:
     return validate(copied)
 
 
+def hands_over(scenario: Scenario) -> bool:
+    """Whether an episode goes on at another plant step from the release
+    time (catch_time_step_s; see catch_phase_scenario)."""
+    step = scenario.catch_time_step_s
+    return step is not None and step != scenario.plant_config.time_step
+
+
 def catch_phase_scenario(scenario: Scenario) -> Scenario | None:
     """The scenario an episode goes on under from the release time: the
     plant at catch_time_step_s; None when that is the throw's step."""
-    step = scenario.catch_time_step_s
-    if step is None or step == scenario.plant_config.time_step:
+    if not hands_over(scenario):
         return None
     copied = copy.deepcopy(scenario)
-    copied.plant_config.time_step = step
+    copied.plant_config.time_step = scenario.catch_time_step_s
     return copied
 
 

@@ -72,10 +72,7 @@ from regrasp_drake.station.catch_state_machine import (
 from regrasp_drake.station.grasp_monitor import GraspMonitor
 from regrasp_drake.station.mlp_system import MlpSystem, load_weights
 from regrasp_drake.station.plant import add_world, bumper_geometry
-from regrasp_drake.station.scenario import (
-    Scenario,
-    catch_phase_scenario,
-)
+from regrasp_drake.station.scenario import Scenario, hands_over
 from regrasp_drake.station.sensors import InfraredSensors, TactileBumper
 from regrasp_drake.station.start_pose import initial_object_pose
 from regrasp_drake.world import robot
@@ -547,7 +544,7 @@ def hand_idle_until_handover(scenario: Scenario) -> bool:
     plant's state, not its parameters, where Drake keeps the locks)."""
     return (throw.is_toss(scenario.throw)
             and ThrowPerturbation.draw(scenario.throw.noise, 1).is_zero()
-            and catch_phase_scenario(scenario) is not None)
+            and hands_over(scenario))
 
 
 def lock_hand(plant: MultibodyPlant, plant_context, hand) -> None:
