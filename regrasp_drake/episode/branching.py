@@ -33,15 +33,12 @@ from regrasp_drake.episode.run import EpisodeResult, read_result, start_grasp
 from regrasp_drake.episode.simulate import (
     THROWS,
     advance_to_outcome,
-    hand_over,
     read_outcome,
+    start_episode,
 )
 from regrasp_drake.errors import check_interrupt
 from regrasp_drake.station.catch_state_machine import Phase
-from regrasp_drake.station.station import (
-    build_episode_diagram,
-    initialize,
-)
+from regrasp_drake.station.station import build_episode_diagram
 
 
 def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
@@ -114,19 +111,13 @@ def _shared_run(scenario, obj, ik, X_WG, throws):
     simulated before by the watching throw the plan came from
     (episode.ThrowCache), or simulated here and kept; its parameters
     (0, 0) never trigger."""
-    def rebuild(later):
-        return build_episode_diagram(later, obj, ik=ik, X_WG=X_WG,
+    def build(s):
+        return build_episode_diagram(s, obj, ik=ik, X_WG=X_WG,
                                      catch_parameters=(0.0, 0.0))
 
-    throws = THROWS if throws is None else throws
-    key = throws.key(scenario, obj, 1, (0.0, 0.0), None)
-    handover = throws.resume(key, rebuild, X_WG, (0.0, 0.0), ik)
-    if handover is None:
-        episode = build_episode_diagram(scenario, obj, ik=ik, X_WG=X_WG,
-                                        catch_parameters=(0.0, 0.0))
-        handover = hand_over(initialize(episode, scenario), episode,
-                             scenario, rebuild)
-        throws.keep(key, handover, ik)
+    handover, _ = start_episode(
+        scenario, obj, build, ik=ik, X_WG=X_WG, catch_parameters=(0.0, 0.0),
+        throws=THROWS if throws is None else throws)
     simulator, episode, scenario = handover.now
     if handover.before is not None:
         machine = episode.controller.state_machine

@@ -1,9 +1,11 @@
 """One episode: build the station, throw, (watch or catch), read the outcome.
 
-The steps, each with one home: build (station.build_episode_diagram),
-initialise (station.initialize), hand over at the release time and advance
-(episode/simulate.py), read (`read_result`: the outcome, how it ended, the
-grasp against the target)."""
+The steps, each with one home: to the release time
+(episode.simulate.start_episode: a throw simulated before gone on from, or
+build, station.build_episode_diagram; initialise, station.initialize; and
+hand over at the release time to the catch's plant step, under the catch's
+scenario), advance (episode.simulate.advance_to_outcome), read
+(`read_result`: the outcome, how it ended, the grasp against the target)."""
 
 import dataclasses as dc
 import time
@@ -16,11 +18,11 @@ from regrasp_drake.episode.simulate import (
     Logs,
     ThrowCache,
     advance_to_outcome,
-    hand_over,
     monitor_state,
     read_logs,
     read_outcome,
     release_time,
+    start_episode,
 )
 from regrasp_drake.parameter_space import HELD_OUTCOMES
 from regrasp_drake.planning import grasp
@@ -39,7 +41,6 @@ from regrasp_drake.station.station import (
     EpisodeDiagram,
     build_episode_diagram,
     fixed_catch_parameters,
-    initialize,
 )
 from regrasp_drake.world.objects import ObjectSpec
 
@@ -148,32 +149,21 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
     propagates). Requires catch_parameters and an X_WG (any: it is
     replaced)."""
     t0 = time.perf_counter()
-    start = start_grasp(scenario, obj)
+    start_pose = start_grasp(scenario, obj)
+    catch_parameters = fixed_catch_parameters(scenario, X_WG,
+                                              catch_parameters)
 
-    def rebuild(later):
+    def build(s):
         return build_episode_diagram(
-            later, obj, ik=ik, X_WG=X_WG, catch_parameters=catch_parameters,
+            s, obj, ik=ik, X_WG=X_WG, catch_parameters=catch_parameters,
             mlp_features=mlp_features, meshcat=meshcat,
             throw_number=throw_number)
 
-    catch_parameters = fixed_catch_parameters(scenario, X_WG,
-                                              catch_parameters)
-    throws = THROWS if throws is None else throws
-    key = throws.key(scenario, obj, throw_number, catch_parameters, meshcat)
-    handover = throws.resume(key, rebuild, X_WG, catch_parameters, ik)
-    if handover is not None:  # this throw's release, simulated before
-        build_s = time.perf_counter() - t0
-    else:
-        episode = build_episode_diagram(
-            scenario, obj, ik=ik, X_WG=X_WG,
-            catch_parameters=catch_parameters, mlp_features=mlp_features,
-            meshcat=meshcat, throw_number=throw_number)
-        if meshcat is not None:
-            meshcat.StartRecording(set_visualizations_while_recording=False)
-        simulator = initialize(episode, scenario)
-        build_s = time.perf_counter() - t0
-        handover = hand_over(simulator, episode, scenario, rebuild)
-        throws.keep(key, handover, ik)
+    handover, build_s = start_episode(
+        scenario, obj, build, ik=ik, X_WG=X_WG,
+        catch_parameters=catch_parameters, throw_number=throw_number,
+        meshcat=meshcat, throws=THROWS if throws is None else throws)
+    # From here on the episode goes on under the catch's scenario.
     simulator, episode, scenario = handover.now
     message = handover.message
     if handover.running:
@@ -193,7 +183,7 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
     logs = handover.logs(read_logs(episode.loggers, context))
     h = logs.params[:, -1] if logs.params.shape[1] else (None, None)
     return read_result(
-        episode, context, scenario, obj, start, message=message,
+        episode, context, scenario, obj, start_pose, message=message,
         h_catch=None if X_WG is None else float(h[0]),
         h_down=None if X_WG is None else float(h[1]),
         wall_s=wall_s, build_s=build_s, logs=logs)

@@ -1,12 +1,14 @@
-"""Advancing an episode's simulation: to its outcome (`advance_to_outcome`,
-and what the grasp monitor decided, `read_outcome`), to the release time and
-over to the catch's plant step (`hand_over`), or on from a throw simulated
-before (`ThrowCache`); and the signals its loggers kept (`Logs`)."""
+"""Advancing an episode's simulation: to its release time (`start_episode`: on from
+a throw simulated before, `ThrowCache`, or built, initialised and handed
+over to the catch's plant step, `hand_over`), to its outcome
+(`advance_to_outcome`, and what the grasp monitor decided, `read_outcome`);
+and the signals its loggers kept (`Logs`)."""
 
 import dataclasses as dc
 import hashlib
 import math
 import pickle
+import time
 
 import numpy as np
 from pydrake.math import RigidTransform
@@ -25,6 +27,7 @@ from regrasp_drake.station.station import (
     EpisodeDiagram,
     Loggers,
     continue_with,
+    initialize,
 )
 
 
@@ -110,6 +113,32 @@ def hand_over(simulator, episode: EpisodeDiagram, scenario: Scenario,
     simulator_later = continue_with(simulator, episode, other, later)
     return Handover((simulator_later, other, later), (simulator, episode),
                     "", True)
+
+
+def start_episode(scenario: Scenario, obj, build, *, ik, X_WG,
+                  catch_parameters, throw_number: int = 1, meshcat=None,
+                  throws: "ThrowCache") -> tuple[Handover, float]:
+    """An episode to its release time: its throw kept in `throws`, gone on
+    from (ThrowCache.resume), or else built (`build(scenario)`, the
+    episode's diagram for a scenario: the throw's, and at the handover the
+    catch's), initialised, simulated to the release time and handed over
+    (`hand_over`), and kept. Arguments as run_episode's; `meshcat` records
+    from the start. Returns the Handover (its `now` holds the scenario the
+    episode goes on under: the catch's, at its plant step) and the wall
+    time to build and initialise (or resume), [s]."""
+    t0 = time.perf_counter()
+    key = throws.key(scenario, obj, throw_number, catch_parameters, meshcat)
+    handover = throws.resume(key, build, X_WG, catch_parameters, ik)
+    if handover is not None:
+        return handover, time.perf_counter() - t0
+    episode = build(scenario)
+    if meshcat is not None:
+        meshcat.StartRecording(set_visualizations_while_recording=False)
+    simulator = initialize(episode, scenario)
+    build_s = time.perf_counter() - t0
+    handover = hand_over(simulator, episode, scenario, build)
+    throws.keep(key, handover, ik)
+    return handover, build_s
 
 
 class ThrowCache:

@@ -30,19 +30,20 @@ def release_s(throw) -> float:
     return throw.release_time_s
 
 
-def end_s(throw) -> float:
+def end_s(throw, brake_delay_s: float = 0.0) -> float:
     """When the move toward the grasp pose (or the park pose) takes over:
     the swing's last knot, or the palm toss's hand-off (the arm still
-    moving, the object long gone)."""
+    moving, the object long gone), the toss's brake delayed by
+    `brake_delay_s` (release noise, catch_state_machine.ThrowPerturbation)."""
     if is_toss(throw):
-        return TossDesign.of(throw.toss).handoff_s
+        return TossDesign.of(throw.toss, brake_delay_s=brake_delay_s).handoff_s
     return throw.knot_times_s[-1]
 
 
-def free_time_s(scenario) -> float:
+def free_time_s(scenario, brake_delay_s: float = 0.0) -> float:
     """end_s in an episode's time (the settling first): when the object is
     in free flight and the move toward the grasp pose takes over, [s]."""
-    return scenario.throw.settle_s + end_s(scenario.throw)
+    return scenario.throw.settle_s + end_s(scenario.throw, brake_delay_s)
 
 
 def end_state(throw, ik) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
