@@ -184,7 +184,7 @@ def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     q_seed = throw.grasp_ik_seed(scenario, ik)
     # A flight that ends before the release (a watching throw stopped with
     # the object near the ground) says why there is no catch point.
-    t_release = scenario.throw.settle_s + throw.release_s(scenario.throw)
+    t_release = throw.let_go_time_s(scenario)
     if (getattr(watched, "outcome", None) == "landed"
             and watched.logs.t[-1] < t_release):
         raise InputError(

@@ -65,7 +65,7 @@ from pydrake.trajectories import PiecewisePolynomial
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.planning.time_law import quintic, quintic_from
 from regrasp_drake.station.palm_toss import TossDesign, toss_trajectory
-from regrasp_drake.station.throw import end_s, free_time_s
+from regrasp_drake.station.throw import end_s, free_time_s, let_go_time_s
 from regrasp_drake.world.robot import HAND_JOINTS
 
 
@@ -241,18 +241,16 @@ class CatchStateMachine(LeafSystem):
             design = TossDesign.of(t.toss,
                                    brake_delay_s=perturbation.release_dt_s)
             self._tau_release = design.brake_start_s
-            self._t_release = t.settle_s + design.brake_start_s
             self._spline = toss_trajectory(design, ik)
             self._q_start = np.array(design.start_q)
         else:
             self._tau_release = t.release_time_s
-            self._t_release = (t.settle_s + t.release_time_s
-                               + perturbation.release_dt_s)
             knots = np.array(t.knot_q_rad).T
             self._spline = (
                 PiecewisePolynomial.CubicWithContinuousSecondDerivatives(
                     t.knot_times_s, knots, np.zeros(6), np.zeros(6)))
             self._q_start = knots[:, 0]
+        self._t_release = let_go_time_s(scenario, perturbation.release_dt_s)
         self._throw_s = end_s(t, perturbation.release_dt_s)
         self._t_throw_end = free_time_s(scenario, perturbation.release_dt_s)
         self._spline_v = self._spline.derivative(1)

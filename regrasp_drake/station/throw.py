@@ -22,12 +22,22 @@ def start_q(throw) -> np.ndarray:
     return np.array(throw.knot_q_rad[0], float)
 
 
-def release_s(throw) -> float:
+def release_s(throw, brake_delay_s: float = 0.0) -> float:
     """When the object is let go: the fingers open, or the palm starts to
-    brake (the object leaves a few ms later)."""
+    brake (the object leaves a few ms later), `brake_delay_s` later with
+    release noise (catch_state_machine.ThrowPerturbation)."""
     if is_toss(throw):
-        return TossDesign.of(throw.toss).brake_start_s
-    return throw.release_time_s
+        return TossDesign.of(throw.toss, brake_delay_s=brake_delay_s
+                             ).brake_start_s
+    return throw.release_time_s + brake_delay_s
+
+
+def let_go_time_s(scenario, brake_delay_s: float = 0.0) -> float:
+    """release_s in an episode's time (the settling first), [s]."""
+    throw = scenario.throw
+    if is_toss(throw):
+        return throw.settle_s + release_s(throw, brake_delay_s)
+    return throw.settle_s + throw.release_time_s + brake_delay_s
 
 
 def end_s(throw, brake_delay_s: float = 0.0) -> float:
