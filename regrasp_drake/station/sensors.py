@@ -33,7 +33,7 @@ _HIT_TOLERANCE_M = 1e-4
 # counted as a miss.
 _MAX_TRACE_STEPS = 200
 # -1 and +1, to compute a quadratic's two roots -b ∓ √disc at once.
-_MINUS_PLUS = np.array([-1.0, 1.0])[:, None, None]
+_MINUS_PLUS = np.array([-1.0, 1.0])[:, None, None, None]
 
 
 def quantize(distance_m: float, range_m: float, levels: int = 1000) -> int:
@@ -99,119 +99,88 @@ def trace_ray(
 
 
 class _CastTargets:
-    """Closed-form ray casting against boxes, spheres, cylinders and capsules
-    fixed in one frame F: every ray against every shape in two batches of
-    array operations, one for balls (spheres, and a capsule's end balls) and
-    one for solids (boxes, cylinders, and a capsule's cylinder).
+    """Closed-form ray casting of a fixed set of rays, fixed in a frame B,
+    against boxes, spheres, cylinders and capsules fixed in a frame F: every
+    ray against every shape in one batch of array operations, for any pose
+    X_FB.
 
-    A solid is, in its own frame G, the points within three slabs
-    |x_k| <= half_k and inside the infinite cylinder x_0² + x_1² <= r² about
-    G's z axis: a box has r = inf, a cylinder half_0 = half_1 = inf. A ray is
-    within an unbounded slab or cylinder over its whole length, so that bound
-    changes no entry distance."""
+    Each shape is made of parts, each part, in its own frame G, the points
+    within four quadrics Σ_k w_k x_k² <= r²: three slabs |x_k| <= half_k
+    (w a unit vector) and a ball about G's origin (w = 1, 1, 1) or an
+    infinite cylinder about G's z axis (w = 1, 1, 0). A box is its slabs in a
+    ball of infinite radius, a sphere its ball between infinite slabs, a
+    cylinder its cylinder between z slabs, and a capsule a cylinder and two
+    balls at its ends. An unbounded quadric holds a ray over its whole
+    length, so it changes no entry distance.
 
-    def __init__(self, shapes):
+    The rays are cast in every part's frame at once: a ray enters a part
+    where it has entered all four quadrics, and hits it if it has not yet
+    left any there."""
+
+    def __init__(self, shapes, rays_B):
         """`shapes`: (X_FG, shape) pairs, every shape a Drake Box, Sphere,
-        Cylinder or Capsule."""
-        balls, solids = [], []
+        Cylinder or Capsule. `rays_B`: the rays' origins and unit directions
+        in B, 2×N×3."""
+        ball, cylinder, no_slabs = (1.0, 1.0, 1.0), (1.0, 1.0, 0.0), (np.inf,) * 3
+        parts = []  # (X_FG, half sizes, w, r) of each part
         for X_FG, shape in shapes:
-            R_GF = X_FG.rotation().matrix().T
-            p_FG = X_FG.translation()
             if isinstance(shape, Sphere):
-                balls.append((p_FG, shape.radius()))
+                parts.append((X_FG, no_slabs, ball, shape.radius()))
             elif isinstance(shape, Box):
-                solids.append((R_GF, p_FG, shape.size() / 2.0, np.inf))
+                parts.append((X_FG, shape.size() / 2.0, ball, np.inf))
             else:
                 half = shape.length() / 2.0
-                solids.append((R_GF, p_FG, (np.inf, np.inf, half), shape.radius()))
+                parts.append((X_FG, (np.inf, np.inf, half), cylinder,
+                              shape.radius()))
                 if isinstance(shape, Capsule):
-                    z_F = R_GF[2]
-                    balls += [(p_FG + half * z_F, shape.radius()),
-                              (p_FG - half * z_F, shape.radius())]
-        self._balls = None
-        if balls:
-            p_FC, radius = (np.array(column, float) for column in zip(*balls))
-            self._balls = (p_FC, np.square(radius))
-        self._solids = None
-        if solids:
-            R_GF, p_FG, half, radius = (np.array(column, float)
-                                        for column in zip(*solids))
-            half = half[:, None, :]
-            self._solids = (
-                R_GF,
-                # Subtracted from the rays (origins, directions): p_FG, 0.
-                np.stack((p_FG, np.zeros_like(p_FG)), axis=1)[:, :, None, :],
-                np.stack((-half, half)),  # each slab's two faces
-                half,
-                np.square(radius)[:, None])
+                    parts += [(X_FG @ RigidTransform([0.0, 0.0, z]), no_slabs,
+                               ball, shape.radius()) for z in (-half, half)]
+        X_FG, half, w, r = zip(*parts)
+        m, n = len(parts), rays_B.shape[1]
+        # The rays in each part's frame G are X_GF·X_FB·H_B, H_B the rays in
+        # homogeneous coordinates (origins and directions, 2×4×N), linear in
+        # the 16 entries of X_FB: the rays are this matrix times them.
+        X_GF = np.array([X.inverse().GetAsMatrix34() for X in X_FG])  # M×3×4
+        H_B = np.concatenate((rays_B.transpose(0, 2, 1),
+                              [[[1.0] * n], [[0.0] * n]]), axis=1)
+        self._rays_G = np.einsum("mcj,ikn->imcnkj", X_GF, H_B).reshape(-1, 16)
+        self._shape = (2, m, 3, n)
+        # Each part's four quadrics: weights M×4×3, squared radii M×4×1.
+        self._w = np.concatenate((np.broadcast_to(np.eye(3), (m, 3, 3)),
+                                  np.array(w)[:, None]), axis=1)
+        self._r2 = np.square(np.concatenate((half, np.array(r)[:, None]),
+                                            axis=1))[:, :, None]
 
     @staticmethod
     def supports(shape) -> bool:
         return isinstance(shape, (Box, Sphere, Cylinder, Capsule))
 
-    def entry(self, rays) -> np.ndarray:
-        """The distance along each ray (`rays`: origins and unit directions,
-        2×N×3, in F) to where it enters the first shape: 0 for an origin
-        inside one, inf for a miss. Call it under
-        np.errstate(divide="ignore", invalid="ignore"): a ray that misses a
-        shape's quadric computes nan, a ray parallel to a slab divides by
-        zero."""
-        entries = [cast(rays, *targets) for cast, targets in (
-            (_ball_entry, self._balls), (_solid_entry, self._solids))
-            if targets is not None]
-        return entries[0] if len(entries) == 1 else np.minimum(*entries)
-
-
-def _ball_entry(rays, p_FC, r2):
-    """Entry distance of N rays (origins and unit directions, 2×N×3) into
-    the nearest of M balls (centres p_FC: M×3, squared radii r2: M or one for
-    all): N; 0 for an origin inside one, inf for a miss."""
-    o, d = rays
-    p_CS = o[:, None, :] - p_FC  # N×M×3
-    b = np.einsum("nmk,nk->nm", p_CS, d)
-    c = np.einsum("nmk,nmk->nm", p_CS, p_CS) - r2
-    disc = b * b - c
-    root = np.sqrt(disc)  # nan where the line misses the ball
-    # Where the ray leaves the ball: behind its origin, or nan, is a miss.
-    leave = root - b
-    entry = np.where(leave >= 0, np.maximum(-b - root, 0.0), np.inf)
-    return np.minimum.reduce(np.where(c <= 0, 0.0, entry), axis=1)
-
-
-def _solid_entry(rays, R_GF, shift, faces, half, r2):
-    """Entry distance of N rays (origins and unit directions, 2×N×3, in F)
-    into the nearest of M solids (see _CastTargets: rotations R_GF, shift
-    p_FG and 0, slab faces ∓half, half sizes, squared radii), each ray
-    clipped to the three slabs and the cylinder: N; 0 for an origin inside
-    one, inf for a miss."""
-    rays_G = np.einsum("mij,mpnj->pmni", R_GF, rays - shift)  # 2×M×N×3
-    o, d = rays_G
-    # Slabs: the ray's parameters at each slab's two faces.
-    t = (faces - o) / d
-    lo, hi = np.minimum(t[0], t[1]), np.maximum(t[0], t[1])
-    parallel = np.abs(d) < 1e-15
-    if parallel.any():  # in the slab over the whole ray, or nowhere
-        inside = np.abs(o) <= half
-        lo = np.where(parallel, np.where(inside, -np.inf, np.inf), lo)
-        hi = np.where(parallel, np.where(inside, np.inf, -np.inf), hi)
-    enter, leave = np.maximum.reduce(lo, axis=2), np.minimum.reduce(hi, axis=2)
-    # Cylinder: |x_xy + s·d_xy|² = r², a·s² + 2b·s + c = 0.
-    xy = rays_G[..., :2]
-    products = xy[:, None] * xy[None]
-    (oo, b), (_, a) = products[..., 0] + products[..., 1]
-    c = oo - r2
-    disc = b * b - a * c
-    root = np.sqrt(disc)  # nan where the line misses the cylinder
-    lo, hi = (-b + _MINUS_PLUS * root) / a
-    along_axis = a < 1e-30
-    if along_axis.any():  # in the cylinder over the whole ray, or nowhere
-        inside = c <= 0
-        lo = np.where(along_axis, np.where(inside, -np.inf, np.inf), lo)
-        hi = np.where(along_axis, np.where(inside, np.inf, -np.inf), hi)
-    enter, leave = np.maximum(enter, lo), np.minimum(leave, hi)
-    # Hit: a non-empty interval not wholly behind the origin (nan: a miss).
-    hit = (enter <= leave) & (leave >= 0)
-    return np.minimum.reduce(np.where(hit, np.maximum(enter, 0.0), np.inf))
+    def entry(self, X_FB: np.ndarray) -> np.ndarray:
+        """The distance along each ray to where it enters the first shape,
+        for the pose X_FB (a 4×4 matrix): 0 for an origin inside one, inf for
+        a miss, N."""
+        rays = (self._rays_G @ X_FB.ravel(order="F")).reshape(self._shape)
+        # Σ_k w_k (o_k + s·d_k)² = r² is a·s² + 2b·s + c = 0, for origins o
+        # and directions d, for every part's four quadrics (M×4×N each).
+        (oo, b), (_, a) = self._w @ (rays[:, None] * rays[None])
+        c = oo - self._r2  # -inf for an unbounded quadric
+        # A ray parallel to a slab, or along a cylinder's axis, has a = 0:
+        # 1e-300 leaves every a above 1e-284 as it is, and puts such a ray
+        # in the quadric over its whole length (bounds ∓√-c·1e150 m) where
+        # it starts inside (c < 0), nowhere where it starts outside (c > 0),
+        # and at its origin only where it runs on the surface (c = 0).
+        a = a + 1e-300
+        disc = b * b - a * c
+        # A negative discriminant, a line that misses the quadric, gives an
+        # empty interval (enter > leave).
+        root = np.copysign(np.sqrt(np.abs(disc)), disc)
+        # Where the ray enters each quadric, and minus where it leaves.
+        bounds = (_MINUS_PLUS * b - root) / a
+        # Where it has entered all of a part's quadrics (and is not behind
+        # its origin), and minus where it first leaves one.
+        enter, minus_leave = bounds.max(axis=2)
+        enter = np.maximum(enter, 0.0)
+        return np.where(enter <= -minus_leave, enter, np.inf).min(axis=0)
 
 
 def ray_entry(shape, o, d) -> np.ndarray:
@@ -221,9 +190,8 @@ def ray_entry(shape, o, d) -> np.ndarray:
     Returns None for other shapes."""
     if not _CastTargets.supports(shape):
         return None
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return _CastTargets([(RigidTransform(), shape)]).entry(
-            np.array([o, d], float))
+    return _CastTargets([(RigidTransform(), shape)],
+                        np.array([o, d], float)).entry(np.eye(4))
 
 
 class InfraredSensors(LeafSystem):
@@ -249,9 +217,11 @@ class InfraredSensors(LeafSystem):
         inspector: SceneGraphInspector | None = None,
     ):
         """`target_bound`, optional: (body, radius_m), a sphere about the
-        body's frame origin that holds every target geometry. Rays that miss
-        it read nothing without casting or tracing, and the others start
-        tracing where they enter it (the same readings, far fewer distance
+        body's frame origin that holds every target geometry. While it lies
+        beyond the reach of all the rays of a body (their ranges from the
+        body's origin), they read nothing without casting; traced rays that
+        miss it read nothing without tracing, and the others start tracing
+        where they enter it (the same readings, far fewer distance
         queries).
 
         `inspector`, optional: the SceneGraph's model inspector. With it,
@@ -277,11 +247,32 @@ class InfraredSensors(LeafSystem):
             raise field_error("levels", levels, "an integer >= 1")
         self._levels = levels
         self._ranges_m = [float(r) for r in ranges_m]
+        self._ranges = np.array(self._ranges_m)
         self._target_ids = frozenset(target_geometry_ids)
-        # Closed-form targets, per geometry frame F: (F's id, _CastTargets).
-        self._cast = []
+        self._bound = None
+        if target_bound is not None:
+            body, radius_m = target_bound
+            self._bound = (plant.GetBodyFrameIdOrThrow(body.index()), float(radius_m))
+        # The rays grouped by the geometry frame B of their body (usually
+        # all on the palm), as origins p_BS and directions z_BS (2×k×3), so
+        # that one pose places them all; `_order` puts the groups' rays back
+        # in sensor order.
+        body_frames = [plant.GetBodyFrameIdOrThrow(frame.body().index())
+                       for frame in sensor_frames]
+        groups, grouped = [], []
+        for body_id in dict.fromkeys(body_frames):
+            index = [i for i, f in enumerate(body_frames) if f == body_id]
+            grouped += index
+            X_BS = [sensor_frames[i].GetFixedPoseInBodyFrame() for i in index]
+            groups.append((body_id, index, np.array([
+                [X.translation() for X in X_BS],
+                [X.rotation().col(2) for X in X_BS]])))
+        self._ray_groups = [(body_id, rays_B) for body_id, _, rays_B in groups]
+        self._order = np.argsort(grouped)
+        # Closed-form targets, grouped by their geometry frame F.
+        by_frame = {}
         if inspector is not None:
-            traced, by_frame = [], {}
+            traced = []
             for geometry_id in target_geometry_ids:
                 shape = inspector.GetShape(geometry_id)
                 if not _CastTargets.supports(shape):
@@ -289,38 +280,24 @@ class InfraredSensors(LeafSystem):
                     continue
                 by_frame.setdefault(inspector.GetFrameId(geometry_id), []).append(
                     (inspector.GetPoseInFrame(geometry_id), shape))
-            self._cast = [(frame_id, _CastTargets(shapes))
-                          for frame_id, shapes in by_frame.items()]
             self._target_ids = frozenset(traced)
-        self._bound = None
-        if target_bound is not None:
-            body, radius_m = target_bound
-            self._bound = (plant.GetBodyFrameIdOrThrow(body.index()), float(radius_m))
+        # Per ray group: its body frame B, and per frame F of cast targets
+        # (F's id, the targets with the group's rays, and the squared
+        # distance from B's origin to F's beyond which no ray reaches the
+        # target bound, if it is about F; else inf).
+        self._casts = []
+        for body_id, index, rays_B in groups:
+            reach = np.max(np.linalg.norm(rays_B[0], axis=1) + self._ranges[index])
+            casts = []
+            for frame_id, shapes in by_frame.items():
+                beyond2 = math.inf
+                if self._bound is not None and self._bound[0] == frame_id:
+                    beyond2 = (reach + self._bound[1]) ** 2
+                casts.append((frame_id, _CastTargets(shapes, rays_B), beyond2))
+            self._casts.append((body_id, casts, np.full(len(index), np.inf)))
         # The geometry frames whose poses a sample reads, each once.
-        self._target_frames = list(dict.fromkeys(
-            [frame_id for frame_id, _ in self._cast]
-            + ([self._bound[0]] if self._bound is not None else [])))
-        # Per sensor: the geometry frame of its body and its fixed pose X_BS.
-        self._frame_ids = []
-        self._X_BS = []
-        for frame in sensor_frames:
-            body = frame.body()
-            self._frame_ids.append(plant.GetBodyFrameIdOrThrow(body.index()))
-            self._X_BS.append(frame.GetFixedPoseInBodyFrame())
-        # The same rays grouped by body frame (usually all on the palm), as
-        # origins p_BS and directions z_BS (2×k×3), so that one pose query per
-        # body places them all; `_order` puts the groups' rays back in
-        # sensor order.
-        self._ray_groups = []
-        grouped = []
-        for frame_id in dict.fromkeys(self._frame_ids):
-            index = [i for i, f in enumerate(self._frame_ids) if f == frame_id]
-            grouped += index
-            self._ray_groups.append((frame_id, np.array([
-                [self._X_BS[i].translation() for i in index],
-                [self._X_BS[i].rotation().col(2) for i in index]])))
-        self._order = np.argsort(grouped)
-        self._ranges = np.array(self._ranges_m)
+        self._frames = list(dict.fromkeys(
+            [body_id for body_id, _ in self._ray_groups] + list(by_frame)))
 
         self._query_port = self.DeclareAbstractInputPort(
             "query_object", AbstractValue.Make(QueryObject())
@@ -346,48 +323,32 @@ class InfraredSensors(LeafSystem):
 
     def read_levels(self, query_object: QueryObject) -> np.ndarray:
         """Returns each sensor's level for the geometry poses in query_object."""
-        rays = self._rays(query_object)
-        X_WF = {frame_id: query_object.GetPoseInWorld(frame_id)
-                for frame_id in self._target_frames}
-        distances = np.full(len(self._ranges_m), np.inf)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            if self._bound is None:
-                if self._cast:
-                    distances = self._cast_distances(X_WF, rays)
-            else:
-                # Rays that cannot reach the target bound read nothing: when
-                # no ray can (the object is far from the hand), nothing else
-                # is computed.
-                frame_id, radius_m = self._bound
-                live = _ball_entry(rays, X_WF[frame_id].translation()[None],
-                                   radius_m * radius_m) < self._ranges
-                if not live.any():
-                    return np.full(len(self._ranges_m), float(self._levels))
-                if self._cast:
-                    distances[live] = self._cast_distances(X_WF, rays[:, live])
+        X_W = {frame_id: query_object.GetPoseInWorld(frame_id)
+               for frame_id in self._frames}
+        distances = []  # per ray group
+        for body_id, casts, nothing in self._casts:
+            nearest = nothing
+            for frame_id, targets, beyond2 in casts:
+                X_FB = X_W[frame_id].InvertAndCompose(X_W[body_id]).GetAsMatrix4()
+                x, y, z = X_FB[:3, 3].tolist()  # p_FB
+                if x * x + y * y + z * z >= beyond2:
+                    continue  # no ray reaches the target bound
+                entry = targets.entry(X_FB)
+                nearest = entry if nearest is nothing else np.minimum(nearest, entry)
+            distances.append(nearest)
+        if len(distances) == 1:
+            distances = distances[0]
+        else:
+            distances = np.concatenate(distances)[self._order]
         if self._target_ids:
             distances = np.minimum(distances, self._trace_distances(query_object))
         return self._quantize(distances)
 
-    def _cast_distances(self, X_WF, rays):
-        """Closed-form distances along the rays (origins and directions,
-        2×N×3, in the world) to the first cast target (inf: none), for the
-        target frames' poses X_WF."""
-        distances = []
-        for frame_id, targets in self._cast:
-            rays_F = rays.copy()
-            rays_F[0] -= X_WF[frame_id].translation()
-            # Row vectors: p_F = R_FW (p_W - p_WF) is (p_W - p_WF) R_WF.
-            distances.append(targets.entry(
-                rays_F @ X_WF[frame_id].rotation().matrix()))
-        return np.minimum.reduce(distances)
-
     def _quantize(self, distances_m: np.ndarray) -> np.ndarray:
-        """`quantize` of every sensor's distance (m, >= 0) at its range: the
-        floor lies in [0, levels], for a distance below the range."""
-        return np.where(distances_m < self._ranges,  # False for inf and nan
-                        np.floor(distances_m / self._ranges * self._levels),
-                        float(self._levels))
+        """`quantize` of every sensor's distance (m, >= 0; inf or nan for
+        nothing) at its range: the floor, capped at `levels`."""
+        return np.fmin(np.floor(distances_m / self._ranges * self._levels),
+                       self._levels)
 
     def _rays(self, query_object) -> np.ndarray:
         """Every sensor's ray in the world: origins p_WS and unit directions
@@ -398,8 +359,6 @@ class InfraredSensors(LeafSystem):
             rays_W = rays_B @ X_WB.rotation().matrix().T
             rays_W[0] += X_WB.translation()
             rays.append(rays_W)
-        if len(rays) == 1:
-            return rays[0]
         return np.concatenate(rays, axis=1)[:, self._order]
 
     def _trace_distances(self, query_object):
@@ -407,11 +366,8 @@ class InfraredSensors(LeafSystem):
         readings = np.full(len(self._ranges_m), np.inf)
         if self._bound is not None:
             p_WC = query_object.GetPoseInWorld(self._bound[0]).translation()
-        for i, (frame_id, X_BS, range_m) in enumerate(
-            zip(self._frame_ids, self._X_BS, self._ranges_m)
-        ):
-            X_WS = query_object.GetPoseInWorld(frame_id) @ X_BS
-            p_WS, z_W = X_WS.translation(), X_WS.rotation().col(2)
+        for i, (p_WS, z_W, range_m) in enumerate(
+                zip(*self._rays(query_object), self._ranges_m)):
             s0 = 0.0
             if self._bound is not None:
                 s0 = _sphere_entry(p_WS, z_W, p_WC, self._bound[1])
