@@ -104,7 +104,6 @@ def _run(args) -> int:
     from regrasp_drake.episode.run import read_ending
     from regrasp_drake.episode.simulate import (
         advance_to_outcome,
-        fly_with_idle_hand,
         hand_over,
         read_outcome,
         release_time,
@@ -144,9 +143,7 @@ def _run(args) -> int:
             sim.reset_context(context)
             sim.Initialize(InitializeParams(
                 suppress_initialization_events=True))
-            # As run_episode: the flight with the idle hand, then on.
-            message = (fly_with_idle_hand(sim, station, scenario)
-                       or advance_to_outcome(sim, station, scenario))
+            message = advance_to_outcome(sim, station, scenario)
             end_context = sim.get_context()
             outcome, _ = read_outcome(station, end_context, message)
             ending = read_ending(station, end_context, outcome)

@@ -59,11 +59,8 @@ from regrasp_drake.episode.run import run_episode
 from regrasp_drake.episode.simulate import (
     THROWS,
     advance_to_outcome,
-    fly_with_idle_hand,
     hand_over,
-    idle_hand_action,
     release_time,
-    set_hand_locked,
 )
 from regrasp_drake.station.scenario import catch_phase_scenario, load_scenario
 from regrasp_drake.station.scenario_checks import check_catch_parameters
@@ -137,17 +134,14 @@ class Segment:
     """The plant's inputs over one part of an episode simulated at one plant
     step (the throw's, then the catch's after the handover): per plant step
     k0, k0 + 1, ..., the arm's actuation, the fingers' desired state and the
-    plant's state before the step ((steps, n) arrays), the plant's state
-    at the segment's end, and the plant steps before which the hand's joints
-    were locked (True) or unlocked (False) in the catch's flight
-    (episode.simulate.idle_hand_action)."""
+    plant's state before the step ((steps, n) arrays), and the plant's state
+    at the segment's end."""
     scenario: object
     k0: int
     u_arm: np.ndarray
     u_hand: np.ndarray
     x: np.ndarray
     x_end: np.ndarray
-    hand_locks: list[tuple[int, bool]] = dc.field(default_factory=list)
 
     @property
     def dt(self) -> float:
@@ -191,10 +185,6 @@ def _record(simulator, episode, scenario, t_stop):
     k0 = k = round(simulator.get_context().get_time() / dt)
     u_arm, u_hand, x = [], [], []
     done = False
-    # The catch's flight with the idle hand, as episode.simulate's
-    # fly_with_idle_hand: decided at each sensor sample, before its updates.
-    ticks = round(scenario.sensors.period_s / dt)
-    locks, locked, flying = [], False, t_stop == math.inf
     while True:
         if k > k0:  # AdvanceTo(now) would already take the first step's updates
             status = simulator.AdvanceTo(k * dt)
@@ -203,27 +193,15 @@ def _record(simulator, episode, scenario, t_stop):
                 break  # the monitor ended the episode in step k - 1
         if k * dt >= t_stop - 1e-12:
             break
-        if flying and k % ticks == 0:
-            action = idle_hand_action(episode, simulator.get_context(),
-                                      locked, k * dt)
-            if action != "stay" and (action == "lock") != locked:
-                locked = action == "lock"
-                set_hand_locked(episode, simulator.get_mutable_context(),
-                                locked)
-                locks.append((k, locked))
-            flying = action != "done"
         x.append(plant.GetPositionsAndVelocities(context).copy())
         u_arm.append(plant.get_actuation_input_port(station.arm).Eval(
             context).copy())
         u_hand.append(plant.get_desired_state_input_port(station.hand).Eval(
             context).copy())
         k += 1
-    if locked:  # the episode ended in the flight
-        set_hand_locked(episode, simulator.get_mutable_context(), False)
     return Segment(scenario, k0, np.array(u_arm), np.array(u_hand),
                    np.array(x),
-                   plant.GetPositionsAndVelocities(context).copy(),
-                   locks), done
+                   plant.GetPositionsAndVelocities(context).copy()), done
 
 
 def replayed_physics_wall_s(obj, segment: Segment, k_start=None, *,
@@ -271,16 +249,8 @@ def replayed_physics_wall_s(obj, segment: Segment, k_start=None, *,
     plant.SetPositionsAndVelocities(context, segment.x[k_start - k0])
     if hand_idle_until_handover(segment.scenario):  # as the episode's throw
         lock_hand(plant, context, instances.hand)
-    # As the episode's catch: the hand locked in the flight, if it was.
-    locked = [state for k, state in segment.hand_locks if k <= k_start]
-    if locked and locked[-1]:
-        lock_hand(plant, context, instances.hand)
     simulator.Initialize()
     t0 = time.perf_counter()
-    for k, state in segment.hand_locks:
-        if k_start < k < k_end:
-            simulator.AdvanceTo(k * dt)
-            lock_hand(plant, context, instances.hand, state)
     simulator.AdvanceTo(k_end * dt)
     wall = time.perf_counter() - t0
     return wall, bool(k_end == k0 + steps and np.array_equal(
@@ -300,9 +270,7 @@ def episode_from_wall_s(scenario, obj, ik, X_WG, params, t_start,
         simulator, episode, scenario,
         lambda later: build_episode_diagram(later, obj, ik=ik, X_WG=X_WG,
                                             catch_parameters=params)).now
-    message = fly_with_idle_hand(simulator, episode, scenario)
-    if not message:
-        simulator.AdvanceTo(t_start)
+    simulator.AdvanceTo(t_start)
     if timer is not None:
         timer.reset()
     t0 = time.perf_counter()

@@ -10,7 +10,6 @@ import re
 import tempfile
 import unittest
 from pathlib import Path
-from unittest import mock
 
 import matplotlib.image
 import numpy as np
@@ -20,7 +19,6 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.controllers import InverseDynamicsController
 from pydrake.systems.framework import DiagramBuilder
 
-from regrasp_drake.episode import simulate
 from regrasp_drake.episode.replay import (
     CHROMIUM,
     make_meshcat,
@@ -322,55 +320,3 @@ class TestArmController(unittest.TestCase):
         controller = make_arm_controller(scenario)
         self.assertIsInstance(controller, InverseDynamicsController)
         self.assertEqual(controller.num_continuous_states(), 6)
-
-
-class TestIdleHand(unittest.TestCase):
-    """In a catch's flight the fingers' joints are locked while their
-    reference holds still and the object is out of the hand's reach, and
-    free again before the hand waits (episode.simulate.fly_with_idle_hand);
-    never on a watching throw."""
-
-    @classmethod
-    def setUpClass(cls):
-        _setup(cls)
-        cls.plan = plan_catch(cls.scenario, cls.obj, cls.ik, _watched())
-
-    def _episode(self, X_WG):
-        calls = []
-        original = simulate.set_hand_locked
-
-        def recording(episode, context, locked):
-            station = episode.station
-            plant_context = station.plant.GetMyContextFromRoot(context)
-            palm = station.plant.GetBodyByName("palm", station.hand)
-            distance = np.linalg.norm(
-                station.plant.EvalBodyPoseInWorld(
-                    plant_context, palm).translation()
-                - station.plant.EvalBodyPoseInWorld(
-                    plant_context, station.object_body).translation())
-            calls.append((context.get_time(), locked, distance,
-                          station.contact_distance_m))
-            original(episode, context, locked)
-
-        with mock.patch.object(simulate, "set_hand_locked", recording):
-            result = run_episode(self.scenario, self.obj, ik=self.ik,
-                                 X_WG=X_WG, catch_parameters=(0.3, -0.07))
-        return result, calls
-
-    def test_locked_in_the_flight_only(self):
-        result, calls = self._episode(self.plan.X_WG)
-        self.assertEqual(result.outcome, "caught")
-        self.assertEqual([locked for _, locked, _, _ in calls], [True, False])
-        (t_lock, _, d_lock, reach), (t_free, _, d_free, _) = calls
-        self.assertGreater(d_lock, reach)  # out of the hand's reach
-        self.assertLessEqual(d_free, reach + 0.02)  # back within it, nearly
-        # Locked after the release, free before the hand waits.
-        t_wait = result.logs.t[np.argmax(result.logs.phase == Phase.WAIT)]
-        self.assertLess(throw.free_time_s(self.scenario), t_lock)
-        self.assertLess(t_lock, t_free)
-        self.assertLessEqual(t_free, t_wait)
-
-    def test_never_on_a_watching_throw(self):
-        result, calls = self._episode(None)
-        self.assertEqual(result.outcome, "landed")
-        self.assertEqual(calls, [])

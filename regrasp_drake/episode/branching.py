@@ -33,7 +33,6 @@ from regrasp_drake.episode.run import EpisodeResult, read_result, start_grasp
 from regrasp_drake.episode.simulate import (
     THROWS,
     advance_to_outcome,
-    fly_with_idle_hand,
     read_outcome,
     start_episode,
 )
@@ -86,10 +85,8 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
 
     children = _Children(workers, report, died)
     try:
-        message = fly_with_idle_hand(simulator, episode, scenario)
         message, waiting = _run_to_triggers(simulator, episode, scenario,
-                                            parameters, t_final, fork,
-                                            message)
+                                            parameters, t_final, fork)
         # Cells that never triggered share the parent's history to its end.
         never = [i for i, (h, _) in enumerate(parameters) if h in waiting]
         if never:
@@ -133,13 +130,11 @@ def _shared_run(scenario, obj, ik, X_WG, throws):
 
 
 def _run_to_triggers(simulator, episode, scenario, parameters, t_final,
-                     fork, message: str) -> tuple[str, list]:
-    """From the shared run's sensor sample (its release time, or where the
-    flight with the idle hand ended, with that part's failure `message`),
-    looks at each sample, before the state machine's update at that time
-    runs, calling fork(indices) for the cells that part from the run there,
-    then advances to the next, until every row of h_catch has triggered (or
-    the run ends). Returns the run's failure message ("" if none) and the
+                     fork) -> tuple[str, list]:
+    """Advances the shared run sample by sample until every row of h_catch
+    has triggered (or the run ends), calling fork(indices) for the cells
+    that part from it at each sample, before the state machine's update at
+    that time runs. Returns the run's failure message ("" if none) and the
     h_catch values that never triggered."""
     ir_levels = episode.station.GetOutputPort("ir_levels")
     machine = episode.controller.state_machine
@@ -148,30 +143,30 @@ def _run_to_triggers(simulator, episode, scenario, parameters, t_final,
     machine_context = machine.GetMyContextFromRoot(context)
     sensors = scenario.sensors
     waiting = sorted({h for h, _ in parameters}, reverse=True)
-    k = round(context.get_time() / sensors.period_s)
+    message = ""
+    k = round(context.get_time() / sensors.period_s)  # 0, or the release's
     while waiting:
         check_interrupt()
-        done = read_outcome(episode, context, message)[0] != "running"
-        if message or done or context.get_time() >= t_final:
-            break
-        if machine.GetOutputPort("phase").Eval(machine_context)[0] == Phase.WAIT:
-            # What the state machine's check at this time will read.
-            distance = (float(np.min(ir_levels.Eval(ir_context)[3:]))
-                        / sensors.levels * sensors.approach_range_m)
-            triggered = []
-            while waiting and distance < waiting[0]:
-                triggered.append(waiting.pop(0))
-            # Rows that trigger at the same sample share their history to
-            # here, and h_catch is never read again: cells with the same
-            # h_down are one simulation.
-            for h_down in sorted({d for h, d in parameters if h in triggered}):
-                fork([i for i, (h, d) in enumerate(parameters)
-                      if h in triggered and d == h_down])
-            if not waiting:
-                break
         k += 1
         message = advance_to_outcome(simulator, episode, scenario,
                                      min(k * sensors.period_s, t_final))
+        done = read_outcome(episode, context, message)[0] != "running"
+        if message or done or context.get_time() >= t_final:
+            break
+        if machine.GetOutputPort("phase").Eval(machine_context)[0] != Phase.WAIT:
+            continue
+        # What the state machine's check at this time will read.
+        distance = (float(np.min(ir_levels.Eval(ir_context)[3:]))
+                    / sensors.levels * sensors.approach_range_m)
+        triggered = []
+        while waiting and distance < waiting[0]:
+            triggered.append(waiting.pop(0))
+        # Rows that trigger at the same sample share their history to
+        # here, and h_catch is never read again: cells with the same
+        # h_down are one simulation.
+        for h_down in sorted({d for h, d in parameters if h in triggered}):
+            fork([i for i, (h, d) in enumerate(parameters)
+                  if h in triggered and d == h_down])
     return message, waiting
 
 

@@ -4,8 +4,7 @@ The steps, each with one home: to the release time
 (episode.simulate.start_episode: a throw simulated before gone on from, or
 build, station.build_episode_diagram; initialise, station.initialize; and
 hand over at the release time to the catch's plant step, under the catch's
-scenario), advance (episode.simulate.fly_with_idle_hand through the
-flight, then advance_to_outcome), read
+scenario), advance (episode.simulate.advance_to_outcome), read
 (`read_result`: the outcome, how it ended, the grasp against the target)."""
 
 import dataclasses as dc
@@ -19,7 +18,6 @@ from regrasp_drake.episode.simulate import (
     Logs,
     ThrowCache,
     advance_to_outcome,
-    fly_with_idle_hand,
     monitor_state,
     read_logs,
     read_outcome,
@@ -176,9 +174,7 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
                 if meshcat is not None:
                     meshcat.StopRecording()
                 raise
-        message = fly_with_idle_hand(simulator, episode, scenario)
-        if not message:
-            message = advance_to_outcome(simulator, episode, scenario)
+        message = advance_to_outcome(simulator, episode, scenario)
     wall_s = time.perf_counter() - t0
     if meshcat is not None:
         meshcat.StopRecording()

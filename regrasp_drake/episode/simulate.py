@@ -15,10 +15,7 @@ from pydrake.math import RigidTransform
 
 from regrasp_drake import memo
 from regrasp_drake.station import throw
-from regrasp_drake.station.catch_state_machine import (
-    Phase,
-    ThrowPerturbation,
-)
+from regrasp_drake.station.catch_state_machine import ThrowPerturbation
 from regrasp_drake.station.grasp_monitor import GraspMonitor
 from regrasp_drake.station.scenario import (
     Scenario,
@@ -31,7 +28,6 @@ from regrasp_drake.station.station import (
     Loggers,
     continue_with,
     initialize,
-    lock_hand,
 )
 
 
@@ -249,80 +245,6 @@ def advance_to_outcome(simulator, episode: EpisodeDiagram, scenario,
     except Exception as e:  # a failed contact solve
         return str(e).strip().splitlines()[0] if str(e).strip() else repr(e)
     return ""
-
-
-# The lock also keeps this far beyond the hand's reach, [m] (0.1 m measured too).
-_MARGIN = 0.0
-
-
-def fly_with_idle_hand(simulator, episode: EpisodeDiagram,
-                       scenario: Scenario) -> str:
-    """Advances a catching episode from the release time through the
-    object's flight, sensor sample by sensor sample, the fingers' joints
-    locked while nothing moves them (`idle_hand_action`), and stops at the
-    sample where that ends, the hand free. Returns "" or a failure's
-    message (advance_to_outcome's)."""
-    context = simulator.get_mutable_context()
-    period = scenario.sensors.period_s
-    k = round(context.get_time() / period)
-    locked, message = False, ""
-    while True:
-        action = idle_hand_action(episode, context, locked, k * period)
-        if action == "done":
-            break
-        if action == "lock":
-            set_hand_locked(episode, context, True)
-            locked = True
-        k += 1
-        message = advance_to_outcome(simulator, episode, scenario, k * period)
-        if message or read_outcome(episode, context, "")[0] != "running":
-            break
-    if locked:
-        set_hand_locked(episode, context, False)
-    return message
-
-
-def idle_hand_action(episode: EpisodeDiagram, context, locked: bool,
-                     t: float) -> str:
-    """What the catch's flight does with the fingers at the sensor sample
-    at time t (before the sample's updates run), in the diagram's `context`:
-    "lock" their joints (Joint::Lock: SAP leaves them out of its solve) at
-    the first sample in MOVE at which their reference holds still
-    (CatchStateMachine.fingers_still) and the object's origin is farther
-    from the palm's than the station's contact_distance_m (nothing of the
-    hand can touch it); "done" (unlock them if locked) at the first at which
-    it is not, or once the state machine has left MOVE (the arm has
-    arrived: a trigger may follow at once); else "stay". Nothing here reads
-    the catch parameters, so every cell of a success map shares this part
-    (branching looks at its triggers at the same samples, before their
-    updates). "done" at once on a watching throw or a continuous plant."""
-    station = episode.station
-    machine = episode.controller.state_machine
-    plant = station.plant
-    machine_context = machine.GetMyContextFromRoot(context)
-    phase = machine.GetOutputPort("phase").Eval(machine_context)[0]
-    if (phase > Phase.MOVE or plant.time_step() == 0.0
-            or machine.watching(machine_context)):
-        return "done"
-    plant_context = plant.GetMyContextFromRoot(context)
-    palm = plant.GetBodyByName("palm", station.hand)
-    p_WP = plant.EvalBodyPoseInWorld(plant_context, palm).translation()
-    p_WO = plant.EvalBodyPoseInWorld(plant_context,
-                                     station.object_body).translation()
-    far = np.linalg.norm(p_WO - p_WP) > station.contact_distance_m + _MARGIN
-    if locked:
-        return "stay" if far else "done"
-    if phase == Phase.MOVE and far and machine.fingers_still(t):
-        return "lock"
-    return "stay"
-
-
-def set_hand_locked(episode: EpisodeDiagram, context, locked: bool) -> None:
-    """Locks (or unlocks) the hand's joints in the diagram's `context`."""
-    station = episode.station
-    lock_hand(station.plant,
-              station.plant.GetMyMutableContextFromRoot(context),
-              station.hand, locked)
 
 
 def read_outcome(episode: EpisodeDiagram, context,

@@ -435,16 +435,6 @@ class CatchStateMachine(LeafSystem):
         context.get_mutable_numeric_parameter(self._watching).SetAtIndex(
             0, float(watching))
 
-    def fingers_still(self, t: float) -> bool:
-        """Whether the fingers' reference, at time t after the throw and
-        until the lowering (phases MOVE and WAIT), holds still: pre-shaped
-        (palm toss) or open (the finger throw)."""
-        if self._toss:
-            ramp, start = self._open_to_preshape, self._t_throw_end
-        else:
-            ramp, start = self._hold_to_open, self._t_release
-        return ramp.speed * (t - start) >= ramp.longest
-
     def continue_at(self, context) -> None:
         """Makes this machine's table of references in `context` (copied
         from a machine of another plant step, at a sensor sample:

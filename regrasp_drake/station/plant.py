@@ -4,16 +4,12 @@ geometry of the palm, the bumper and the object."""
 
 import logging
 
-import numpy as np
 from pydrake.geometry import (
     Box,
-    Capsule,
-    Cylinder,
     HalfSpace,
     ProximityProperties,
     Role,
     RoleAssign,
-    Sphere,
 )
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import (
@@ -129,37 +125,3 @@ def bumper_geometry(plant, scene_graph, hand, palm: str = "box"):
         return geometries["bumper"]
     raise RuntimeError(f"the hand model has no bumper geometry for the "
                        f"palm {palm!r}")
-
-
-def hand_reach_m(plant, scene_graph, hand) -> float:
-    """The farthest any collision geometry of the hand reaches from the palm
-    body's origin with the fingers straight (robot.HAND_OPEN: their longest
-    reach), [m]: the distance to each geometry's origin plus the radius of a
-    ball about it that holds the shape (sphere, capsule, cylinder, box)."""
-    context = plant.CreateDefaultContext()
-    plant.SetPositions(context, hand, robot.HAND_OPEN)
-    inspector = scene_graph.model_inspector()
-    palm = plant.GetBodyByName("palm", hand)
-    reach = 0.0
-    for index in plant.GetBodyIndices(hand):
-        body = plant.get_body(index)
-        X_PB = plant.CalcRelativeTransform(context, palm.body_frame(),
-                                           body.body_frame())
-        for geometry in plant.GetCollisionGeometriesForBody(body):
-            X_PG = X_PB @ inspector.GetPoseInFrame(geometry)
-            reach = max(reach, np.linalg.norm(X_PG.translation())
-                        + _bounding_radius(inspector.GetShape(geometry)))
-    return reach
-
-
-def _bounding_radius(shape) -> float:
-    """The radius of a ball about the shape's frame origin that holds it."""
-    if isinstance(shape, Sphere):
-        return shape.radius()
-    if isinstance(shape, Capsule):
-        return shape.radius() + shape.length() / 2.0
-    if isinstance(shape, Cylinder):
-        return float(np.hypot(shape.radius(), shape.length() / 2.0))
-    if isinstance(shape, Box):
-        return float(np.linalg.norm(shape.size())) / 2.0
-    raise ValueError(f"hand_reach_m: no bound for a {type(shape).__name__}")

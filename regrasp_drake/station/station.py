@@ -71,11 +71,7 @@ from regrasp_drake.station.catch_state_machine import (
 )
 from regrasp_drake.station.grasp_monitor import GraspMonitor
 from regrasp_drake.station.mlp_system import MlpSystem, load_weights
-from regrasp_drake.station.plant import (
-    add_world,
-    bumper_geometry,
-    hand_reach_m,
-)
+from regrasp_drake.station.plant import add_world, bumper_geometry
 from regrasp_drake.station.scenario import Scenario, hands_over
 from regrasp_drake.station.sensors import InfraredSensors, TactileBumper
 from regrasp_drake.station.start_pose import initial_object_pose
@@ -116,11 +112,6 @@ class Station:
     infrared: InfraredSensors
     bumper: TactileBumper
     X_WO_initial: RigidTransform  # the object's pose in the open palm
-    # Nothing of the hand can touch the object while the object's origin is
-    # farther than this from the palm body's origin: the hand's reach with
-    # straight fingers (plant.hand_reach_m) plus the object's bounding
-    # radius, [m].
-    contact_distance_m: float
     inputs: dict[str, InputPort]
     outputs: dict[str, OutputPort]
 
@@ -287,8 +278,6 @@ def add_station(builder: DiagramBuilder, scenario: Scenario,
         hand=instances.hand, object_body=object_body, infrared=ir,
         bumper=bumper,
         X_WO_initial=initial_object_pose(plant, instances, obj, scenario),
-        contact_distance_m=(hand_reach_m(plant, scene_graph, instances.hand)
-                            + obj.bounding_radius),
         inputs=inputs, outputs=outputs)
 
 
@@ -558,16 +547,11 @@ def hand_idle_until_handover(scenario: Scenario) -> bool:
             and hands_over(scenario))
 
 
-def lock_hand(plant: MultibodyPlant, plant_context, hand,
-              locked: bool = True) -> None:
+def lock_hand(plant: MultibodyPlant, plant_context, hand) -> None:
     """Locks every joint of the hand in plant_context (Joint::Lock: its
-    velocity zeroed, the joint held where it is), or unlocks it."""
+    velocity zeroed, the joint held where it is)."""
     for index in plant.GetJointIndices(hand):
-        joint = plant.get_joint(index)
-        if locked:
-            joint.Lock(plant_context)
-        else:
-            joint.Unlock(plant_context)
+        plant.get_joint(index).Lock(plant_context)
 
 
 def continue_with(simulator: Simulator, episode: EpisodeDiagram,
