@@ -1,5 +1,6 @@
 """The scenario loader refuses what it cannot use, naming the field."""
 
+import hashlib
 import re
 import tempfile
 import unittest
@@ -261,3 +262,31 @@ class OneOfEverythingTest(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class DigestTest(unittest.TestCase):
+    """scenario_digest is kept by the scenario's repr: a change anywhere,
+    down to Drake's configs and the directives' poses, is a new digest,
+    the same as the YAML's."""
+
+    def test_every_nested_value_changes_the_digest(self):
+        base = load_scenario()
+        digests = {scenario_digest(base)}
+        self.assertEqual(scenario_digest(load_scenario()),
+                         scenario_digest(base))
+        for text in (
+                "{plant_config: {stiction_tolerance: 0.0002}}",
+                "{simulator_config: {accuracy: 0.001}}",
+                "{catch: {preshape_distal_closure: 0.4}}",
+                "{throw: {toss: {spin_rad_per_s: 5.4}}}",
+                "{regrasp: {target: keep}}"):
+            digests.add(scenario_digest(load_scenario(text=text)))
+        moved = load_scenario()
+        X_PC = moved.directives[3].add_weld.X_PC
+        X_PC.translation = X_PC.translation + [0.0, 0.0, 1e-9]
+        digests.add(scenario_digest(moved))
+        self.assertEqual(len(digests), 7)
+        # What is kept is the YAML's digest.
+        text = scenario_yaml(moved)
+        self.assertEqual(scenario_digest(moved), hashlib.sha256(
+            text[:text.rindex("regrasp:\n")].encode()).hexdigest()[:16])

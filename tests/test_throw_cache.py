@@ -89,7 +89,8 @@ class ThrowCacheTest(unittest.TestCase):
         self.assertEqual(set(memo.caches()),
                          {"start poses", "rest poses", "throws",
                           "forward tilts", "sideways tables",
-                          "toss trajectories", "arm joint limits"})
+                          "toss trajectories", "arm joint limits",
+                          "scenario digests"})
         self.assertGreater(len(memo.caches()["start poses"]), 0)
         mine.clear()
         memo.clear_all()

@@ -25,9 +25,11 @@ dataclass tree, each field with its unit, meaning and source beside it.
 import copy
 import dataclasses as dc
 import hashlib
+import sys
 import typing
 from pathlib import Path
 
+import numpy as np
 from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
 from pydrake.multibody.parsing import ModelDirective
 from pydrake.multibody.plant import MultibodyPlantConfig
@@ -35,6 +37,7 @@ from pydrake.systems.analysis import (
     SimulatorConfig,
 )
 
+from regrasp_drake import memo
 from regrasp_drake.errors import InputError, field_error
 from regrasp_drake.input_files import Tagged, dump_yaml, load_yaml, parse_yaml
 from regrasp_drake.paths import PACKAGE_DIR
@@ -559,8 +562,19 @@ def scenario_digest(scenario: Scenario) -> str:
     """A short sha256 of every value of the scenario: equal digests, same throw
     and same catch machinery. A scenario aiming for no target (regrasp at
     its defaults, `any`) digests as it did before the field existed, so
-    that the results recorded then still match it."""
-    text = scenario_yaml(scenario)
-    if scenario.regrasp == RegraspConfig():
-        text = text[:text.rindex("regrasp:\n")]
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
+    that the results recorded then still match it. Kept by the scenario's
+    repr (every value, nested, Drake's configs included: a twentieth of the
+    YAML's cost; scenarios equal in repr are equal in YAML)."""
+    def compute():
+        text = scenario_yaml(scenario)
+        if scenario.regrasp == RegraspConfig():
+            text = text[:text.rindex("regrasp:\n")]
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+    # NumPy's arrays (Drake's transforms in the directives) in full: every
+    # float as the shortest text that reads back the same, none elided.
+    with np.printoptions(floatmode="unique", threshold=sys.maxsize):
+        key = repr(scenario)
+    return _DIGESTS.get(key, compute)
+
+
+_DIGESTS = memo.Memo("scenario digests")
