@@ -278,6 +278,15 @@ class CatchStateMachine(LeafSystem):
         self._hand_ref = self.DeclareDiscreteState(
             np.concatenate(self._hand_reference(x0, 0.0)))
         self._dt = scenario.plant_config.time_step
+        self._declare_references(scenario)
+        self.DeclareVectorOutputPort(
+            "phase", 1, self._calc_phase,
+            prerequisites_of_calc={self.xd_ticket()})
+
+    def _declare_references(self, scenario) -> None:
+        """The reference output ports: on a discrete plant, the state groups
+        the per-step update writes from its table of references (declared
+        here); on a continuous one, computed from the time."""
         if self._dt > 0.0:
             self._ticks_per_sample = round(scenario.sensors.period_s / self._dt)
             self._table_steps = self._ticks_per_sample * max(
@@ -315,9 +324,6 @@ class CatchStateMachine(LeafSystem):
             self.DeclareVectorOutputPort(
                 "hand_desired_state", 2 * len(self._open), self._calc_hand,
                 prerequisites_of_calc=depends)
-        self.DeclareVectorOutputPort(
-            "phase", 1, self._calc_phase,
-            prerequisites_of_calc={self.xd_ticket()})
 
     # ---- references ----------------------------------------------------
     def _references(self, x, step):
