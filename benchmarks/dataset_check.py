@@ -31,7 +31,6 @@ from regrasp_drake.grid import ending, read_rows
 from regrasp_drake.learning.provenance import git_version
 from regrasp_drake.paths import MODELS_DIR, REPO_DIR
 
-HERE = Path(__file__).parent
 
 
 def _plan(path: Path) -> dict:
@@ -117,7 +116,8 @@ def main(argv=None) -> int:
     p.add_argument("generated", type=Path,
                    help="the data set directory generated again")
     p.add_argument("--shipped", type=Path, default=MODELS_DIR / "dataset")
-    p.add_argument("--out", type=Path, default=HERE / "dataset_check.json")
+    p.add_argument("--out", type=Path,
+                   default=REPO_DIR / "benchmarks" / "dataset_check.json")
     args = p.parse_args(argv)
     try:
         check_output_path("--out", args.out)

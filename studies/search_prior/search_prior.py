@@ -71,7 +71,7 @@ from regrasp_drake.learning.search import (
     load_prior_maps,
     wavefront_order,
 )
-from regrasp_drake.paths import MODELS_DIR
+from regrasp_drake.paths import MODELS_DIR, REPO_DIR
 from regrasp_drake.world.objects import load_catalogue
 
 RESULTS_DIR = MODELS_DIR / "results"
@@ -271,7 +271,8 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", type=Path,
-                        default=Path(__file__).with_name("search_prior.json"))
+                        default=(REPO_DIR / "studies" / "search_prior"
+                                 / "search_prior.json"))
     parser.add_argument("--no-network-splits", action="store_true",
                         help="skip section 3 (five network trainings)")
     args = parser.parse_args(argv)
