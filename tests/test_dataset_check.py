@@ -55,8 +55,10 @@ class DatasetCheckTest(RefusalAssertions, unittest.TestCase):
         code, result = self._run(changed, self.root / "changed.json")
         self.assertEqual(code, 1)
         self.assertFalse(result["identical"])
-        self.assertEqual(result["cells_differing"],
+        self.assertEqual(result["cells_differing"], {path.stem: 1})
+        self.assertEqual(result["cells_with_another_outcome"],
                          {path.stem: [str(tuple(row["cell"]))]})
+        self.assertEqual(result["cells_same_outcome"], 7199)
 
     def test_not_a_data_set_refused(self):
         self.assertRefused([str(self.root), "--out",
