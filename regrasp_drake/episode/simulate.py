@@ -1,6 +1,6 @@
-"""Advancing an episode's simulation: to its release time (`start_episode`: on from
-a throw simulated before, `ThrowCache`, or built, initialised and handed
-over to the catch's plant step, `hand_over`), to its outcome
+"""Advancing an episode's simulation: to its release time (`start_episode`:
+on from a throw simulated before, `ThrowCache`, or built, initialised and
+handed over to the catch's plant step, `hand_over`), to its outcome
 (`advance_to_outcome`, and what the grasp monitor decided, `read_outcome`);
 and the signals its loggers kept (`Logs`)."""
 
