@@ -302,7 +302,7 @@ def real_time_factors(results) -> dict:
 def throw_reused(scenario, obj, ik, plan, params, runs, fresh) -> tuple:
     """The catch going on from its throw simulated before, as `regrasp-drake
     catch` runs it: a watch (episode.ThrowCache keeps its throw), then the
-    catch, which builds its own diagram and goes on from the kept throw;
+    catch, which goes on from the kept throw in the watch's diagram;
     `runs` times (the watches not timed), checked equal to the episode
     simulated from the start (`fresh`), and once more with our callbacks
     timed. Returns (report, the timed run's CallbackTimer report, that
