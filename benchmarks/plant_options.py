@@ -39,6 +39,7 @@ from tqdm import tqdm
 
 from regrasp_drake import atomic_io
 from regrasp_drake.episode.branching import run_cells
+from regrasp_drake.errors import InputError
 from regrasp_drake.episode.simulate import THROWS
 from regrasp_drake.parameter_space import cell_parameters, cells
 from regrasp_drake.planning.ik import ArmIk
@@ -149,7 +150,7 @@ def map_pairs(scenarios, names, ik) -> list:
     return rows
 
 
-def main() -> int:
+def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--runs", type=int, default=5)
@@ -159,7 +160,19 @@ def main() -> int:
                                  "can-d300-3"])
     parser.add_argument("--json", type=Path,
                         default=Path("benchmarks/plant_options.json"))
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
+    try:
+        for flag, value in (("--runs", args.runs), ("--pairs", args.pairs)):
+            if value < 1:
+                raise InputError(f"{flag} {value}: expected >= 1")
+        for name in args.map_objects:
+            try:
+                resolve_object(name=name)
+            except InputError as e:
+                raise InputError(f"--map-objects {name}: {e}") from None
+    except InputError as e:
+        print(f"plant_options: error: {e}", file=sys.stderr)
+        return 2
     torch.set_num_threads(1)
     scenario = load_scenario()
     ik = ArmIk(scenario.directives)

@@ -1,5 +1,6 @@
 """benchmarks/episode_benchmark.py: the physics it times alone is the
-episode's physics, bit for bit."""
+episode's physics, bit for bit (and benchmarks/plant_options.py's use of
+it)."""
 
 import dataclasses as dc
 import unittest
@@ -12,6 +13,7 @@ from tests.fixtures import Row2Fixture
 from tests.refusals import RefusalAssertions, load_script
 
 episode_benchmark = load_script("benchmarks/episode_benchmark.py")
+plant_options = load_script("benchmarks/plant_options.py")  # imports the above
 
 
 class ReplayTest(Row2Fixture, unittest.TestCase):
@@ -44,6 +46,16 @@ class ReplayTest(Row2Fixture, unittest.TestCase):
                 self.obj, self.segment, k_start)
             self.assertTrue(same, k_start)
             self.assertGreater(wall, 0.0)
+
+    def test_replay_without_sampled_output_ports_is_the_same_physics(self):
+        """benchmarks/plant_options.py's claim: with the plant's step a
+        discrete update (no sampled output ports) the same inputs give the
+        same state, bit for bit."""
+        scenario = plant_options.with_plant(self.scenario,
+                                            use_sampled_output_ports=False)
+        _, same = episode_benchmark.replayed_physics_wall_s(
+            self.obj, self.segment, self.k_fork, scenario=scenario)
+        self.assertTrue(same)
 
     def test_replay_with_other_inputs_ends_elsewhere(self):
         """The check is not vacuous: one arm torque 1e-9 N·m off, one step
@@ -106,6 +118,16 @@ class BadInputTest(RefusalAssertions, unittest.TestCase):
         self.assertRefused(["--runs", "0"], "--runs 0", "expected >= 1")
         self.assertRefused(["--object", "nope"], "--object nope", "expected")
         self.assertRefused(["--h-catch", "0.9"], "--h-catch", "0.9",
+                           "expected")
+
+
+class PlantOptionsBadInputTest(RefusalAssertions, unittest.TestCase):
+    main = staticmethod(plant_options.main)
+
+    def test_refusals(self):
+        self.assertRefused(["--runs", "0"], "--runs 0", "expected >= 1")
+        self.assertRefused(["--pairs", "-1"], "--pairs -1", "expected >= 1")
+        self.assertRefused(["--map-objects", "nope"], "--map-objects nope",
                            "expected")
 
 
