@@ -60,6 +60,8 @@ OPTIONS = {
 
 
 def with_plant(scenario, **fields):
+    """A copy of `scenario` with these fields of its MultibodyPlantConfig
+    replaced."""
     out = copy.deepcopy(scenario)
     for name, value in fields.items():
         setattr(out.plant_config, name, value)
@@ -116,6 +118,8 @@ def catch_pairs(scenarios, obj, ik, pairs, *, reuse: bool) -> dict:
 
 
 def map_pairs(scenarios, names, ik) -> list:
+    """Per object of `names`: its watched plan and its 150-cell map under
+    each scenario (sampled output ports on, then off), compared."""
     parameters = [cell_parameters(c) for c in cells()]
     rows = []
     for name in tqdm(names, desc="maps", unit="object"):
