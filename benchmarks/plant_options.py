@@ -18,10 +18,11 @@
    from the start (no throw cache), half as many: wall time ratio pair by
    pair, outcome and final position of each.
 3. Success maps (150 cells, 2 workers) of `--map-objects` under both, in
-   turn: wall time per map, cells with the same outcome; of the cells
-   caught under both, the same grasp axis and side, and how far the grasp's
-   offset and tilt moved (median, largest); and whether the watched plans
-   (release state, catch point, palm pose) are equal.
+   turn (which first alternating from object to object): wall time per
+   map, cells with the same outcome; of the cells caught under both, the
+   same grasp axis and side, and how far the grasp's offset and tilt moved
+   (median, largest); and whether the watched plans (release state, catch
+   point, palm pose) are equal.
 """
 
 import regrasp_drake  # noqa: F401, I001 (first: pins NumPy's kernels)
@@ -119,14 +120,16 @@ def catch_pairs(scenarios, obj, ik, pairs, *, reuse: bool) -> dict:
 
 def map_pairs(scenarios, names, ik) -> list:
     """Per object of `names`: its watched plan and its 150-cell map under
-    each scenario (sampled output ports on, then off), compared."""
+    each scenario (sampled output ports on and off, which first alternating
+    from object to object), compared."""
     parameters = [cell_parameters(c) for c in cells()]
     rows = []
-    for name in tqdm(names, desc="maps", unit="object"):
+    for n, name in enumerate(tqdm(names, desc="maps", unit="object")):
         obj = resolve_object(name=name)
         row = {"object": name}
         results, plans = {}, {}
-        for k, s in scenarios.items():
+        order = list(scenarios.items())
+        for k, s in (order if n % 2 == 0 else order[::-1]):
             plan = plan_watched(s, obj, ik, watch(s, obj, ik))
             plans[k] = plan.as_dict()
             t0 = time.perf_counter()

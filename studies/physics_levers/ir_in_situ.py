@@ -34,6 +34,8 @@ def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--catches", type=int, default=5)
     args = parser.parse_args()
+    if args.catches < 1:
+        parser.error(f"--catches {args.catches}: expected >= 1")
     torch.set_num_threads(1)
     parts = {"query port": [], "poses (first read)": [], "read_levels": [],
              "read_levels again": []}
