@@ -26,10 +26,12 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
 import torch
 
-from regrasp_drake import atomic_io, progress
-from regrasp_drake.map_rows import open_rows, read_rows
+from regrasp_drake import atomic_io, scenario_args
+from regrasp_drake.grid import append_rows
+from regrasp_drake.map_rows import read_rows
 from regrasp_drake.errors import InputError
 from regrasp_drake.learning.flight_predictor import FlightPredictor
 from regrasp_drake.learning.learning_phase import NoCatchPoint, learn
@@ -39,11 +41,7 @@ from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning.grasp import Target, check_reachable
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.mlp_system import load_weights
-from regrasp_drake.station.scenario import (
-    load_scenario,
-    scenario_digest,
-    with_target,
-)
+from regrasp_drake.station.scenario import scenario_digest, with_target
 from regrasp_drake.world.objects import load_catalogue, resolve_object
 
 DEFAULT_TARGETS = [f"{kind}:{offset}" for kind in ("keep", "flip")
@@ -74,7 +72,75 @@ def run_one(scenario, obj, model, ik, mode, max_throws, predictor,
         "attempts": [a["outcome"] for a in d["attempts"]]}
 
 
+_MODELS = {}
+
+
+def _job(task) -> dict:
+    """One (object, target, mode, trial) row, in a worker process: the
+    shipped network, flight predictor and offset prior loaded once per
+    process."""
+    (scenario, target, name, mode, level, trial, max_throws,
+     use_prior) = task
+    torch.set_num_threads(1)
+    if not _MODELS:
+        _MODELS["model"] = load_weights(MODELS_DIR / scenario.catch.weights)[0]
+        _MODELS["predictor"] = FlightPredictor.load(
+            MODELS_DIR / "flight_predictor.json")
+        _MODELS["prior"] = (OffsetPrior.load(MODELS_DIR / "offset_prior.json")
+                            if use_prior else None)
+        _MODELS["ik"] = ArmIk(scenario.directives)
+    return {"object": name, "target": target.as_dict(), "mode": mode,
+            "level": level, "trial": trial,
+            "scenario_digest": scenario_digest(scenario)} | run_one(
+        scenario, resolve_object(name=name), _MODELS["model"], _MODELS["ik"],
+        mode, max_throws, _MODELS["predictor"], _MODELS["prior"])
+
+
+def landing(rows: list[dict]) -> dict:
+    """How the reachable rows in `rows` ended: the share in the target grasp;
+    of those held the right way round (the axis within 90° of the target's
+    direction, the side right), the median |offset error| and tilt; and
+    each miss by its reason."""
+    done = [r for r in rows if r["stopped"] != "refused"]
+    ok = [r for r in done if r["success"]]
+    right = [r for r in done if r.get("caught") and r.get("grasp_error")
+             and r["grasp_error"]["axis_error_deg"] < 90.0
+             and r["grasp_error"]["side_ok"] is not False]
+    misses = {"no_catch_point": 0, "dropped": 0, "wrong_way_round": 0,
+              "tilted": 0, "off_offset": 0}
+    for r in done:
+        if r["success"]:
+            continue
+        if r["stopped"] == "no_catch_point":
+            misses["no_catch_point"] += 1
+        elif not r.get("caught"):
+            misses["dropped"] += 1
+        elif r not in right:
+            misses["wrong_way_round"] += 1
+        elif r["grasp_error"]["axis_error_deg"] > 20.0:
+            misses["tilted"] += 1
+        else:
+            misses["off_offset"] += 1
+
+    def median(values):
+        return round(float(np.median(values)), 2) if values else None
+
+    return {
+        "pairs": len(rows), "refused": len(rows) - len(done),
+        "in_target": len(ok),
+        "share_in_target": round(len(ok) / len(done), 3) if done else None,
+        "held_right_way_round": len(right),
+        "median_abs_offset_error_mm": median(
+            [abs(r["grasp_error"]["offset_error_mm"]) for r in right]),
+        "median_tilt_deg": median(
+            [r["grasp_error"]["axis_error_deg"] for r in right]),
+        "misses": misses}
+
+
 def summarize(rows: list[dict], targets, modes, level: float) -> dict:
+    """Per target and mode: the throws each object took (None: not in the
+    target grasp), and `landing`'s figures; under "all", `landing`'s over
+    every target."""
     out = {}
     for target in targets:
         key = f"{target.kind}:{target.offset_mm:+.0f}"
@@ -82,14 +148,9 @@ def summarize(rows: list[dict], targets, modes, level: float) -> dict:
         for mode in modes:
             mine = [r for r in rows if r["target"] == target.as_dict()
                     and r["mode"] == mode and r.get("level", 0.0) == level]
-            done = [r for r in mine if r["stopped"] != "refused"]
-            ok = [r for r in done if r["success"]]
+            ok = [r for r in mine if r["success"]]
             errors = [r["grasp_error"] for r in ok]
-            out[key][mode] = {
-                "objects": len(mine), "refused": len(mine) - len(done),
-                "in_target": len(ok),
-                "share_in_target": (round(len(ok) / len(done), 3)
-                                    if done else None),
+            out[key][mode] = landing(mine) | {
                 "throws": {f"{r['object']}#{r.get('trial', 0)}":
                            (r["throws"] if r["success"] else None)
                            for r in mine},
@@ -100,6 +161,12 @@ def summarize(rows: list[dict], targets, modes, level: float) -> dict:
                 "max_axis_error_deg": max(
                     (e["axis_error_deg"] for e in errors), default=None),
             }
+    wanted = {t.as_dict()["kind"] + str(t.as_dict()["offset_mm"])
+              for t in targets}
+    out["all"] = {mode: landing([
+        r for r in rows if r["mode"] == mode and r.get("level", 0.0) == level
+        and r["target"]["kind"] + str(r["target"]["offset_mm"]) in wanted])
+        for mode in modes}
     return out
 
 
@@ -140,54 +207,49 @@ def main(argv=None) -> int:
                              "velocities k x 0.03 rad/s (default 0)")
     parser.add_argument("--trials", type=int, default=1,
                         help="noise seeds per (object, target, mode)")
+    parser.add_argument("--workers", type=int, default=1,
+                        help="episodes run side by side in forked processes "
+                             "(default 1)")
     parser.add_argument("--out", type=Path,
                         default=MODELS_DIR / "results" / "regrasp_targets")
+    scenario_args.add(parser, target=False)
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
-    targets = [Target.parse(t) for t in args.targets]
-    base = load_scenario()
-    model, _ = load_weights(MODELS_DIR / base.catch.weights)
-    predictor = FlightPredictor.load(MODELS_DIR / "flight_predictor.json")
-    offset_prior = (OffsetPrior.load(MODELS_DIR / "offset_prior.json")
-                    if args.offset_prior else None)
-    ik = ArmIk(base.directives)
+    try:
+        targets = [Target.parse(t) for t in args.targets]
+        base, _ = scenario_args.load(args)
+    except InputError as e:
+        print(f"regrasp_targets: error: {e}", file=sys.stderr)
+        return 2
     rows_path = args.out.with_suffix(".jsonl")
 
     def row_key(r):
         return (r["object"], r["target"]["kind"], r["target"]["offset_mm"],
                 r["mode"], r.get("level", 0.0), r.get("trial", 0))
 
-    rows = list(read_rows(rows_path, key=row_key).values())
-
-    done = {row_key(r) for r in rows}
-    jobs = [(target, name, mode, trial) for target in targets
+    done = read_rows(rows_path, key=row_key)
+    jobs = []
+    for target, name, mode, trial in [
+            (target, name, mode, trial) for target in targets
             for name in object_list(args.objects) for mode in args.modes
-            for trial in range(args.trials)]
-    for target, name, mode, trial in progress.iterate(
-            jobs, len(jobs), "regrasp targets", "episodes"):
+            for trial in range(args.trials)]:
         scenario = noisy(with_target(base, target), args.noise_level, trial)
-        digest = scenario_digest(scenario)
-        key = (name, target.kind, target.offset_mm, mode,
-               args.noise_level, trial)
-        if key in done:
-            old = next(r for r in rows if row_key(r) == key)
-            if old["scenario_digest"] != digest:
-                raise SystemExit(f"{rows_path}: row {key} was made "
-                                 "under another scenario; move the "
-                                 "file away to start again")
-            continue
-        row = {"object": name, "target": target.as_dict(),
-               "mode": mode, "level": args.noise_level,
-               "trial": trial, "scenario_digest": digest} | run_one(
-            scenario, resolve_object(name=name), model, ik, mode,
-            args.max_throws, predictor, offset_prior)
-        rows.append(row)
-        with open_rows(rows_path) as f:
-            f.append(json.dumps(row))
-        progress.say(f"{target.label()} {mode} {name}: "
-                     f"{'in target' if row['success'] else row['stopped']}"
-                     f" after {row['throws']} throws "
-                     f"{row.get('achieved_grasp')}", sys.stdout)
+        key = (name, target.kind, target.offset_mm, mode, args.noise_level,
+               trial)
+        if key not in done:
+            jobs.append((scenario, target, name, mode, args.noise_level,
+                         trial, args.max_throws, args.offset_prior))
+        elif done[key]["scenario_digest"] != scenario_digest(scenario):
+            raise SystemExit(f"{rows_path}: row {key} was made under "
+                             "another scenario; move the file away to "
+                             "start again")
+
+    # Each job is deterministic on its own: forked workers give the same
+    # rows as a serial run, in the jobs' order.
+    append_rows(_job, jobs, rows_path, done, row_key,
+                workers=args.workers, label="regrasp targets",
+                unit="episodes")
+    rows = list(done.values())
     summary = summarize(rows, targets, args.modes, args.noise_level)
     atomic_io.write_json(args.out.with_suffix(".json"), summary)
     print(json.dumps(summary, indent=1))

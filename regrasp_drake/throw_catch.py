@@ -119,11 +119,19 @@ def catch_palm_poses(scenario: Scenario, point, obj: ObjectSpec):
     c = scenario.catch
     return palm_poses_for(
         point, obj.grasp_radius, obj=obj, com_margin_m=c.palm_com_margin_m,
-        max_palm_tilt_rad=float(np.arcsin(c.tilt_tolerance)),
+        max_palm_tilt_rad=palm_max_tilt_rad(c),
         across_com_fraction=c.palm_across_com_fraction,
         toward_landing_end_m=c.palm_toward_landing_end_m,
         toward_fingers_m=c.palm_toward_fingers_m,
         along_axis_m=1e-3 * scenario.regrasp.offset_mm)
+
+
+def palm_max_tilt_rad(catch) -> float:
+    """How far the palm turns toward the object's axis at most, [rad]: the
+    scenario's catch.palm_max_tilt_rad, or arcsin(catch.tilt_tolerance)."""
+    if catch.palm_max_tilt_rad is not None:
+        return float(catch.palm_max_tilt_rad)
+    return float(np.arcsin(catch.tilt_tolerance))
 
 
 def planned_grasp(scenario: Scenario, obj: ObjectSpec, point: CatchPoint,

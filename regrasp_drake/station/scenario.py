@@ -203,6 +203,11 @@ class CatchConfig:
     # the object at the moment of catching"): 0.3 is a 17° tilt, well inside
     # the 42° friction angle of the pads (mu = 0.9).
     tilt_tolerance: float = 0.3
+    # The palm turns about the fingertip direction toward the object's axis
+    # by at most this angle, [rad]; None: as far as tilt_tolerance allows
+    # (arcsin 0.3, 17.5°: parallel to the axis at every catch point). 0: the
+    # palm waits level whatever the axis's tilt.
+    palm_max_tilt_rad: typing.Optional[float] = None
     # Along the object's axis the palm is centred under the grasp piece, but
     # shifted so that the centre of mass is at most this far from the palm's
     # centre (the palm is 0.115 m wide along the axis), [m]: 0, under the

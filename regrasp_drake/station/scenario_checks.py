@@ -173,6 +173,9 @@ def _check_catch(s) -> None:
     _in_range("catch.catch_height_m", k.catch_height_m, 0.2, 1.6, " m")
     _in_range("catch.tilt_tolerance", k.tilt_tolerance, 0.0, 1.0)
     _in_range("catch.height_band_m", k.height_band_m, 0.0, 1.0, " m")
+    if k.palm_max_tilt_rad is not None:
+        _in_range("catch.palm_max_tilt_rad", k.palm_max_tilt_rad, 0.0, 0.6,
+                  " rad")
     _in_range("catch.palm_com_margin_m", k.palm_com_margin_m, 0.0, 0.05, " m")
     _in_range("catch.palm_toward_landing_end_m", k.palm_toward_landing_end_m,
               0.0, 0.03, " m")
