@@ -359,20 +359,29 @@ def release_correction(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     return at_release
 
 
+def catch_planned(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
+                  plan: CatchPlan, parameters, *, meshcat=None,
+                  throw_number: int = 1, record=None) -> EpisodeResult:
+    """A catching throw under a watched or predicted plan with `parameters`
+    (h_catch, h_down), [m], corrected at its own release
+    (`release_correction`, which fills in `record`, a ReleaseCorrection);
+    `meshcat`: where it is drawn; throw_number seeds the release noise."""
+    return run_episode(
+        scenario, obj, ik=ik, X_WG=plan.X_WG, catch_parameters=parameters,
+        meshcat=meshcat, throw_number=throw_number,
+        at_release=release_correction(scenario, obj, ik, plan, parameters,
+                                      record))
+
+
 def catch_once(scenario: Scenario, obj: ObjectSpec, *, h_catch: float,
                h_down: float, meshcat=None) -> tuple[EpisodeResult, CatchPlan]:
     """`regrasp-drake catch`: watch, plan, and one catch attempt with
     (h_catch, h_down), [m]; `meshcat`: where the catching throw is drawn."""
     torch.set_num_threads(1)
     ik = ArmIk(scenario.directives)
-    watched = watch(scenario, obj, ik)
-    plan = plan_watched(scenario, obj, ik, watched)
-    result = run_episode(
-        scenario, obj, ik=ik, X_WG=plan.X_WG,
-        catch_parameters=(h_catch, h_down), meshcat=meshcat,
-        at_release=release_correction(scenario, obj, ik, plan,
-                                      (h_catch, h_down)))
-    return result, plan
+    plan = plan_watched(scenario, obj, ik, watch(scenario, obj, ik))
+    return catch_planned(scenario, obj, ik, plan, (h_catch, h_down),
+                         meshcat=meshcat), plan
 
 
 def episode_graphviz(scenario: Scenario, obj: ObjectSpec, *,

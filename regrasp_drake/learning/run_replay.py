@@ -35,8 +35,11 @@ from regrasp_drake.episode.replay import make_meshcat, write_html
 class RunReplay:
     """A Meshcat for every episode of a run, and their combined animation."""
 
-    def __init__(self, gap_s: float = 0.5):
-        self.meshcat = make_meshcat()
+    def __init__(self, gap_s: float = 0.5, meshcat=None):
+        """gap_s: the still time between two throws, [s]; meshcat: where
+        the episodes are drawn and recorded, e.g. Drake's StartMeshcat()
+        in a notebook (default: a new one on loopback, `make_meshcat`)."""
+        self.meshcat = make_meshcat() if meshcat is None else meshcat
         self._gap_s = gap_s      # still time between two throws, [s]
         self._offset_s = 0.0     # where the next episode starts, [s]
         self._animation = None
