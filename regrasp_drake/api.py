@@ -73,6 +73,7 @@ class Run:
     learning: object = None  # learning_result.LearningResult, for a phase
     replay: RunReplay | None = None  # every throw's recording, if recorded
     scenario: Scenario | None = None  # the scenario it ran under
+    entry: object = None  # the library entry `apply` caught with
 
     @property
     def achieved_grasp(self) -> dict | None:
@@ -182,7 +183,10 @@ def learn(obj: ObjectSpec, *, scenario: Scenario | None = None,
         offset_prior=load_offset_prior(offset_prior, scenario),
         meshcat=None if recording is None else recording.meshcat,
         on_episode=on_episode, progress=progress)
-    return _run(scenario, obj.name, episodes[-1], plan=result.plan,
+    # The plan of the last catching throw (a later one's, after an offset
+    # correction, never ran).
+    plan = result.attempts[-1].plan if result.attempts else result.plan
+    return _run(scenario, obj.name, episodes[-1], plan=plan,
                 learning=result, replay=recording, success=result.success,
                 throws=result.throws)
 
@@ -212,7 +216,7 @@ def apply(obj: ObjectSpec, *, library=DEFAULT_LIBRARY_PATH,
         meshcat=None if recording is None else recording.meshcat)
     if recording is not None:
         recording.add_episode(episode.sim_time_s)
-    return _run(scenario, obj.name, episode, replay=recording)
+    return _run(scenario, obj.name, episode, replay=recording, entry=entry)
 
 
 def load_network(weights, scenario: Scenario, *, field: str = "weights"):

@@ -436,7 +436,7 @@ class _Phase:
                 if correction.how in ("shifted", "replanned", "kept")
                 else None),
             achieved_grasp=result.achieved_grasp,
-            grasp_error=result.grasp_error))
+            grasp_error=result.grasp_error, plan=self.plan))
         how = "" if result.success else f" ({self.attempts[-1].ending})"
         self.report(f"throw {self.throws}: cell {cell} (h_catch {h_catch:.2f}"
                     f" m, h_down {h_down:.2f} m): {result.outcome}{how}, "
