@@ -3,10 +3,10 @@
 Every error from bad input is one line on stderr and exit status 2, found
 before any simulation (docs/input-checks.md lists what is checked), the
 outputs' included: no existing file that is not the command's own is
-overwritten. Outputs given no path go to --out-dir (default paths.OUT_DIR,
-out/ at the top of the repository). Ctrl-C ends a command with one line and
-exit status 130; what it has written so far (a map's rows, a data set's
-entries) is kept and resumed by the next run.
+overwritten. Outputs given no path go to --out-dir (default paths.OUT_DIR:
+out/ at the top of the repository, ./out when installed). Ctrl-C ends a
+command with one line and exit status 130; what it has written so far (a
+map's rows, a data set's entries) is kept and resumed by the next run.
 
 Over 500 lines because it holds the thirteen commands, each a short function
 of its own, and their parser; what they write and the checks of it are in
@@ -43,7 +43,8 @@ def _add_object_args(p: argparse.ArgumentParser) -> None:
 def _add_out_dir_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out-dir", metavar="DIR", type=Path,
                    help="where the outputs given no path go (default: out/ "
-                        "at the top of the repository, which git ignores)")
+                        "at the top of the repository, which git ignores; "
+                        "./out when installed)")
 
 
 def _add_library_arg(p: argparse.ArgumentParser) -> None:
