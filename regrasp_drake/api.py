@@ -22,17 +22,25 @@ import dataclasses as dc
 import sys
 from pathlib import Path
 
+import torch
+
 from regrasp_drake.episode.run import EpisodeResult
 from regrasp_drake.errors import InputError, field_error
-from regrasp_drake.learning.library import DEFAULT_LIBRARY
+from regrasp_drake.learning.flight_predictor import FlightPredictor
+from regrasp_drake.learning.learning_phase import apply_learned
+from regrasp_drake.learning.learning_phase import learn as learning_phase
+from regrasp_drake.learning.library import DEFAULT_LIBRARY, lookup
+from regrasp_drake.learning.offset_prior import OffsetPrior
 from regrasp_drake.learning.run_replay import RunReplay
 from regrasp_drake.paths import MODELS_DIR, OUT_DIR
 from regrasp_drake.planning.grasp import Target, check_reachable
-from regrasp_drake.station.scenario import (
-    Scenario,
-    target_of,
-    with_target,
-)
+from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.plots import plot_episode
+from regrasp_drake.station import scenario as scenarios
+from regrasp_drake.station.mlp_system import CatchMlp, load_weights
+from regrasp_drake.station.scenario import Scenario, target_of, with_target
+from regrasp_drake.station.scenario_checks import check_catch_parameters
+from regrasp_drake.throw_catch import catch_once, episode_caption, save_replay
 from regrasp_drake.world.objects import ObjectSpec, resolve_object
 
 # Where `learn` stores what it learned and `apply` looks it up by default
@@ -55,8 +63,7 @@ def load_scenario(name: str | None = None, *, file=None,
     when it holds one scenario; `text`: YAML fields that replace its own
     (as --scenario-text); `target`: the grasp to aim for (a Target or its
     kind), which picks the target's throw."""
-    from regrasp_drake.station.scenario import load_scenario as load
-    scenario = load(file, name=name, text=text)
+    scenario = scenarios.load_scenario(file, name=name, text=text)
     return scenario if target is None else with_target(scenario,
                                                        _target(target))
 
@@ -102,8 +109,6 @@ class Run:
                              "(replay=False), expected a recorded run")
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         if self.replay.episodes == 1 and self.plan is not None:
-            from regrasp_drake.planning.ik import ArmIk
-            from regrasp_drake.throw_catch import episode_caption, save_replay
             return save_replay(self.replay.meshcat, path, self.episode,
                                self.plan, ArmIk(self.scenario.directives),
                                caption=episode_caption(self.episode))
@@ -112,7 +117,6 @@ class Run:
     def plot(self, path) -> Path:
         """Writes a PNG of the last throw's sensors over time (the paper's
         Fig. 11) and the object's height and tilt. Returns path."""
-        from regrasp_drake.plots import plot_episode
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         return plot_episode(self.episode, Path(path))
 
@@ -123,8 +127,6 @@ def catch(obj: ObjectSpec, h_catch: float, h_down: float, *,
     """`regrasp-drake catch`: a watching throw, the catch planned under its
     flight, and one catch attempt with (h_catch, h_down), [m] (the paper's
     parameter space: 0 … 0.40, -0.14 … 0)."""
-    from regrasp_drake.station.scenario_checks import check_catch_parameters
-    from regrasp_drake.throw_catch import catch_once
     check_catch_parameters(h_catch, h_down, names=("h_catch", "h_down"))
     scenario = _checked(scenario, obj)
     recording = _recording(meshcat, replay)
@@ -160,9 +162,6 @@ def learn(obj: ObjectSpec, *, scenario: Scenario | None = None,
     where a catch is stored (None: not stored). progress: a stream for one
     line per throw (None: quiet). scenario_label, object_source: what the
     library records of where the scenario and the object came from."""
-    import torch
-
-    from regrasp_drake.learning.learning_phase import learn as learning_phase
     torch.set_num_threads(1)
     scenario = _checked(scenario, obj, target)
     recording = _recording(meshcat, replay)
@@ -206,8 +205,6 @@ def apply(obj: ObjectSpec, *, library=DEFAULT_LIBRARY_PATH,
     """`regrasp-drake apply`: one throw, caught with the grasp pose and
     parameters `learn` stored for `obj` in `library` under this
     scenario."""
-    from regrasp_drake.learning.learning_phase import apply_learned
-    from regrasp_drake.learning.library import lookup
     scenario = _checked(scenario, obj)
     entry = lookup(library, obj.name)
     recording = _recording(meshcat, replay)
@@ -223,7 +220,6 @@ def load_network(weights, scenario: Scenario, *, field: str = "weights"):
     """The catch network: `weights` loaded (a path; a CatchMlp as it is;
     None: the scenario's catch.weights in models/). InputError names
     `field` and the file."""
-    from regrasp_drake.station.mlp_system import CatchMlp, load_weights
     if isinstance(weights, CatchMlp):
         return weights
     path = weights or MODELS_DIR / scenario.catch.weights
@@ -238,7 +234,6 @@ def load_network(weights, scenario: Scenario, *, field: str = "weights"):
 def load_flight_predictor(flight_model=None, *, field: str = "flight_model"):
     """The first-throw mode's flight predictor: a path loaded (None:
     models/flight_predictor.json), a FlightPredictor as it is."""
-    from regrasp_drake.learning.flight_predictor import FlightPredictor
     if isinstance(flight_model, FlightPredictor):
         return flight_model
     try:
@@ -252,7 +247,6 @@ def load_offset_prior(offset_prior, scenario: Scenario, *,
                       field: str = "offset_prior"):
     """The offset prior for a scenario aiming for a target: a path loaded,
     an OffsetPrior as it is; None without one, or for target `any`."""
-    from regrasp_drake.learning.offset_prior import OffsetPrior
     if scenario.regrasp.target == "any" or offset_prior is None:
         return None
     if isinstance(offset_prior, OffsetPrior):

@@ -9,7 +9,6 @@ the palm by what that difference changes in the plan (`release_correction`).
 """
 
 import dataclasses as dc
-from types import SimpleNamespace
 
 import numpy as np
 import torch
@@ -29,7 +28,11 @@ from regrasp_drake.planning.catch_plan import (
     move_torque_ratio,
     palm_poses_for,
 )
-from regrasp_drake.planning.free_flight import flight_from_release
+from regrasp_drake.planning.free_flight import (
+    WatchedFlight,
+    as_watched,
+    flight_from_release,
+)
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
 from regrasp_drake.station.catch_state_machine import Phase, lowered_pose
@@ -69,7 +72,8 @@ def watch(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
 FLIGHT_DISTURBANCE_M_PER_S = 0.01
 
 
-def seen_flight(scenario: Scenario, obj: ObjectSpec, result: EpisodeResult):
+def seen_flight(scenario: Scenario, obj: ObjectSpec,
+                result: EpisodeResult) -> WatchedFlight:
     """What watching a catch throw shows of the flight: the object's logged
     states up to the last sample of undisturbed free flight after the throw
     ends, i.e. before the hand (or anything) first touches the object again.
@@ -94,8 +98,7 @@ def seen_flight(scenario: Scenario, obj: ObjectSpec, result: EpisodeResult):
         if np.linalg.norm(v_cm[k + 1] - expected) > FLIGHT_DISTURBANCE_M_PER_S:
             end = k + 1
             break
-    return SimpleNamespace(logs=SimpleNamespace(
-        t=t[:end].copy(), object_state=states[:, :end].copy()))
+    return as_watched(t[:end].copy(), states[:, :end].copy())
 
 
 def plan_catch(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
