@@ -1,4 +1,12 @@
-"""regrasp-drake: regrasp planning through throwing and catching, in Drake."""
+"""regrasp-drake: regrasp planning through throwing and catching, in Drake.
+
+The public API (regrasp_drake/api.py; docs/api.md):
+
+    import regrasp_drake as rd
+    run = rd.regrasp(rd.load_object("table1-row2"), rd.Target("flip"),
+                     first_throw=True)
+    run.save_replay("replay.html")
+"""
 
 from regrasp_drake import numerics
 
@@ -7,3 +15,20 @@ from regrasp_drake import numerics
 numerics.pin()
 
 __version__ = "0.1.0"
+
+__all__ = ["Run", "Target", "apply", "catch", "learn", "load_object",
+           "load_scenario", "regrasp"]
+
+
+def __getattr__(name: str):
+    """The API's names, imported on first use: `import regrasp_drake` stays
+    cheap (the command line and worker processes import it first, before
+    NumPy, Drake and torch)."""
+    if name in __all__:
+        from regrasp_drake import api
+        return getattr(api, name)
+    raise AttributeError(f"module 'regrasp_drake' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(list(globals()) + __all__)

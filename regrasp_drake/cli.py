@@ -3,10 +3,10 @@
 Every error from bad input is one line on stderr and exit status 2, found
 before any simulation (docs/input-checks.md lists what is checked), the
 outputs' included: no existing file that is not the command's own is
-overwritten. Outputs given no path go to --out-dir (default paths.OUT_DIR,
-out/ at the top of the repository). Ctrl-C ends a command with one line and
-exit status 130; what it has written so far (a map's rows, a data set's
-entries) is kept and resumed by the next run.
+overwritten. Outputs given no path go to --out-dir (default paths.OUT_DIR:
+out/ at the top of the repository, ./out when installed). Ctrl-C ends a
+command with one line and exit status 130; what it has written so far (a
+map's rows, a data set's entries) is kept and resumed by the next run.
 
 Over 500 lines because it holds the thirteen commands, each a short function
 of its own, and their parser; what they write and the checks of it are in
@@ -43,7 +43,8 @@ def _add_object_args(p: argparse.ArgumentParser) -> None:
 def _add_out_dir_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out-dir", metavar="DIR", type=Path,
                    help="where the outputs given no path go (default: out/ "
-                        "at the top of the repository, which git ignores)")
+                        "at the top of the repository, which git ignores; "
+                        "./out when installed)")
 
 
 def _add_library_arg(p: argparse.ArgumentParser) -> None:
@@ -83,19 +84,14 @@ def _cmd_catch(args) -> int:
     check_catch_parameters(args.h_catch, args.h_down,
                            names=("--h-catch", "--h-down"))
     scenario, obj, _, _ = _scenario_and_object(args)
-    from regrasp_drake.episode.replay import make_meshcat
-    from regrasp_drake.planning.ik import ArmIk
-    from regrasp_drake.throw_catch import catch_once, episode_caption, save_replay
-    meshcat = make_meshcat() if args.html is not None else None
-    result, plan = catch_once(scenario, obj, h_catch=args.h_catch,
-                              h_down=args.h_down, meshcat=meshcat)
+    from regrasp_drake import api
+    run = api.catch(obj, args.h_catch, args.h_down, scenario=scenario,
+                    replay=args.html is not None)
     if args.html is not None:
-        save_replay(meshcat, args.html, result, plan,
-                    ArmIk(scenario.directives), caption=episode_caption(result))
+        run.save_replay(args.html)
     if args.plot is not None:
-        from regrasp_drake.plots import plot_episode
-        plot_episode(result, args.plot)
-    summary = result.summary() | {"plan": plan.as_dict()}
+        run.plot(args.plot)
+    summary = run.summary()
     print(json.dumps(summary, indent=1))
     _write_json(args.json, summary)
     return 0
@@ -165,16 +161,8 @@ def _cmd_diagram(args) -> int:
 def _load_network(args, scenario):
     """The MLP of --weights (default: the scenario's catch.weights in
     models/), refused with one line naming the file."""
-    from regrasp_drake.paths import MODELS_DIR
-    from regrasp_drake.station.mlp_system import load_weights
-    path = args.weights or MODELS_DIR / scenario.catch.weights
-    try:
-        model, _ = load_weights(path)
-    except InputError as e:
-        flag = ("--weights" if args.weights
-                else "--weights (default: the scenario's catch.weights)")
-        raise InputError(f"{flag}: {e}") from None
-    return model
+    from regrasp_drake.api import load_network
+    return load_network(args.weights, scenario, field="--weights")
 
 
 def _flight_predictor(args):
@@ -182,13 +170,8 @@ def _flight_predictor(args):
     flight_predictor.json), or None."""
     if not getattr(args, "first_throw", False):
         return None
-    from regrasp_drake.learning.flight_predictor import FlightPredictor
-    from regrasp_drake.paths import MODELS_DIR
-    path = args.flight_model or MODELS_DIR / "flight_predictor.json"
-    try:
-        return FlightPredictor.load(path)
-    except InputError as e:
-        raise InputError(f"--flight-model: {e}") from None
+    from regrasp_drake.api import load_flight_predictor
+    return load_flight_predictor(args.flight_model, field="--flight-model")
 
 
 def _add_first_throw_args(p: argparse.ArgumentParser) -> None:
@@ -216,13 +199,9 @@ def _add_offset_prior_arg(p: argparse.ArgumentParser) -> None:
 def _offset_prior(args, scenario):
     """The offset prior of --offset-prior for a scenario aiming for a
     target; None without one, or for `any`."""
-    if scenario.regrasp.target == "any" or args.offset_prior is None:
-        return None
-    from regrasp_drake.learning.offset_prior import OffsetPrior
-    try:
-        return OffsetPrior.load(args.offset_prior)
-    except InputError as e:
-        raise InputError(f"--offset-prior: {e}") from None
+    from regrasp_drake.api import load_offset_prior
+    return load_offset_prior(args.offset_prior, scenario,
+                             field="--offset-prior")
 
 
 def _add_search_arg(p: argparse.ArgumentParser) -> None:
@@ -248,34 +227,22 @@ def _check_first_throw_args(args) -> None:
                          "catch attempt)")
 
 
-def _replay(path):
-    """A RunReplay when --html is asked for, else None."""
-    if path is None:
-        return None
-    from regrasp_drake.learning.run_replay import RunReplay
-    return RunReplay()
-
-
 def _cmd_learn(args) -> int:
     _check_first_throw_args(args)
     scenario, obj, source, label = _scenario_and_object(args)
-    import torch
-
-    from regrasp_drake.learning.learning_phase import learn
-    torch.set_num_threads(1)
-    model = _load_network(args, scenario)
-    replay = _replay(args.html)
-    result = learn(scenario, obj, model, library_path=args.library,
-                   scenario_label=label, object_source=source,
-                   max_throws=args.max_throws,
-                   flight_predictor=_flight_predictor(args),
-                   at_release=args.at_release, search=args.search,
-                   offset_prior=_offset_prior(args, scenario),
-                   meshcat=replay.meshcat if replay else None,
-                   on_episode=(lambda r: replay.add_episode(r.sim_time_s))
-                   if replay else None)
-    if replay is not None:
-        replay.save(args.html)
+    from regrasp_drake import api
+    run = api.learn(obj, scenario=scenario, library=args.library,
+                    scenario_label=label, object_source=source,
+                    max_throws=args.max_throws,
+                    weights=_load_network(args, scenario),
+                    first_throw=args.first_throw,
+                    flight_model=_flight_predictor(args),
+                    at_release=args.at_release, search=args.search,
+                    offset_prior=_offset_prior(args, scenario),
+                    replay=args.html is not None)
+    result = run.learning
+    if args.html is not None:
+        run.save_replay(args.html)
     if args.plot:
         from regrasp_drake.learning.plots import plot_search
         plot_search(result.search_attempts, result.start_cell, args.plot,
@@ -291,17 +258,13 @@ def _cmd_learn(args) -> int:
 def _cmd_apply(args) -> int:
     start = time.perf_counter()
     scenario, obj, _, _ = _scenario_and_object(args)
-    from regrasp_drake.learning.learning_phase import apply_learned
-    from regrasp_drake.learning.library import lookup
-    entry = lookup(args.library, obj.name)
-    replay = _replay(args.html)
-    result = apply_learned(scenario, obj, entry,
-                           meshcat=replay.meshcat if replay else None)
-    if replay is not None:
-        replay.add_episode(result.sim_time_s)
-        replay.save(args.html)
-    summary = result.summary() | {
-        "throws": 1, "cell": entry.cell, "library": str(args.library),
+    from regrasp_drake import api
+    run = api.apply(obj, library=args.library, scenario=scenario,
+                    replay=args.html is not None)
+    if args.html is not None:
+        run.save_replay(args.html)
+    summary = run.summary() | {
+        "throws": 1, "cell": run.entry.cell, "library": str(args.library),
         "total_wall_s": round(time.perf_counter() - start, 3)}
     print(json.dumps(summary, indent=1))
     _write_json(args.json, summary)

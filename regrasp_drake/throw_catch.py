@@ -9,7 +9,6 @@ the palm by what that difference changes in the plan (`release_correction`).
 """
 
 import dataclasses as dc
-from types import SimpleNamespace
 
 import numpy as np
 import torch
@@ -29,7 +28,11 @@ from regrasp_drake.planning.catch_plan import (
     move_torque_ratio,
     palm_poses_for,
 )
-from regrasp_drake.planning.free_flight import flight_from_release
+from regrasp_drake.planning.free_flight import (
+    WatchedFlight,
+    as_watched,
+    flight_from_release,
+)
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
 from regrasp_drake.station.catch_state_machine import Phase, lowered_pose
@@ -69,7 +72,8 @@ def watch(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
 FLIGHT_DISTURBANCE_M_PER_S = 0.01
 
 
-def seen_flight(scenario: Scenario, obj: ObjectSpec, result: EpisodeResult):
+def seen_flight(scenario: Scenario, obj: ObjectSpec,
+                result: EpisodeResult) -> WatchedFlight:
     """What watching a catch throw shows of the flight: the object's logged
     states up to the last sample of undisturbed free flight after the throw
     ends, i.e. before the hand (or anything) first touches the object again.
@@ -94,8 +98,7 @@ def seen_flight(scenario: Scenario, obj: ObjectSpec, result: EpisodeResult):
         if np.linalg.norm(v_cm[k + 1] - expected) > FLIGHT_DISTURBANCE_M_PER_S:
             end = k + 1
             break
-    return SimpleNamespace(logs=SimpleNamespace(
-        t=t[:end].copy(), object_state=states[:, :end].copy()))
+    return as_watched(t[:end].copy(), states[:, :end].copy())
 
 
 def plan_catch(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
@@ -367,20 +370,29 @@ def release_correction(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     return at_release
 
 
+def catch_planned(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
+                  plan: CatchPlan, parameters, *, meshcat=None,
+                  throw_number: int = 1, record=None) -> EpisodeResult:
+    """A catching throw under a watched or predicted plan with `parameters`
+    (h_catch, h_down), [m], corrected at its own release
+    (`release_correction`, which fills in `record`, a ReleaseCorrection);
+    `meshcat`: where it is drawn; throw_number seeds the release noise."""
+    return run_episode(
+        scenario, obj, ik=ik, X_WG=plan.X_WG, catch_parameters=parameters,
+        meshcat=meshcat, throw_number=throw_number,
+        at_release=release_correction(scenario, obj, ik, plan, parameters,
+                                      record))
+
+
 def catch_once(scenario: Scenario, obj: ObjectSpec, *, h_catch: float,
                h_down: float, meshcat=None) -> tuple[EpisodeResult, CatchPlan]:
     """`regrasp-drake catch`: watch, plan, and one catch attempt with
     (h_catch, h_down), [m]; `meshcat`: where the catching throw is drawn."""
     torch.set_num_threads(1)
     ik = ArmIk(scenario.directives)
-    watched = watch(scenario, obj, ik)
-    plan = plan_watched(scenario, obj, ik, watched)
-    result = run_episode(
-        scenario, obj, ik=ik, X_WG=plan.X_WG,
-        catch_parameters=(h_catch, h_down), meshcat=meshcat,
-        at_release=release_correction(scenario, obj, ik, plan,
-                                      (h_catch, h_down)))
-    return result, plan
+    plan = plan_watched(scenario, obj, ik, watch(scenario, obj, ik))
+    return catch_planned(scenario, obj, ik, plan, (h_catch, h_down),
+                         meshcat=meshcat), plan
 
 
 def episode_graphviz(scenario: Scenario, obj: ObjectSpec, *,

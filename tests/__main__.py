@@ -36,6 +36,8 @@ COSTS_S = {
     "tests.test_examples": 20.0,
     "tests.test_replay": 20.0,
     "tests.test_reliability": 30.0,
+    "tests.test_install": 15.0,
+    "tests.test_notebook": 12.0,
 }
 DEFAULT_COST_S = 8.0
 

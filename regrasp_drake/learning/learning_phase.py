@@ -106,10 +106,10 @@ from regrasp_drake.station.scenario import Scenario, scenario_digest, target_of
 from regrasp_drake.throw_catch import (
     CatchPlan,
     ReleaseCorrection,
+    catch_planned,
     plan_catch,
     plan_watched,
     reachable_h_down,
-    release_correction,
     seen_flight,
     shifted_along_axis,
     watch,
@@ -389,25 +389,22 @@ class _Phase:
                 self.start_search(self.plan)
             return self.plan.X_WG, cell_parameters(self.search.next_cell)
 
-        cell = None if self.search is None else self.search.next_cell
         correction = ReleaseCorrection()
-        if self.at_release:
-            at_release = plan_at_release
-        else:  # a watched or predicted plan, corrected at the release
-            at_release = release_correction(
+        if not self.at_release:  # a watched or predicted plan
+            result = catch_planned(
                 self.scenario, self.obj, self.ik, self.plan,
-                cell_parameters(cell), correction)
+                cell_parameters(self.search.next_cell), meshcat=self.meshcat,
+                throw_number=self.throws + 1, record=correction)
+            return self.attempted(result, correction)
+        cell = None if self.search is None else self.search.next_cell
         try:
             result = run_episode(
-                self.scenario, self.obj, ik=self.ik,
-                X_WG=RigidTransform() if self.at_release else self.plan.X_WG,
+                self.scenario, self.obj, ik=self.ik, X_WG=RigidTransform(),
                 catch_parameters=(cell_parameters(cell) if cell is not None
                                   else (0.0, 0.0)),
                 meshcat=self.meshcat, throw_number=self.throws + 1,
-                at_release=at_release)
+                at_release=plan_at_release)
         except InputError as e:
-            if not self.at_release:
-                raise
             self.throws += 1  # nothing to catch at the release: it counts
             self.unplanned_sim_s += release_time(self.scenario)
             self.report(f"throw {self.throws}: no reachable catch point at "
@@ -418,8 +415,14 @@ class _Phase:
                                    wall_s=time.perf_counter() - self.t0
                                    ) from None
             return None
+        return self.attempted(result, correction)
+
+    def attempted(self, result: EpisodeResult,
+                  correction: ReleaseCorrection) -> EpisodeResult:
+        """Counts a catching throw at the search's next cell (at release,
+        throw 1's search's first) and records it as an attempt."""
         self.throws += 1
-        cell = self.search.next_cell  # at release, throw 1's search's first
+        cell = self.search.next_cell
         h_catch, h_down = cell_parameters(cell)
         if self.on_episode is not None:
             self.on_episode(result)
@@ -433,7 +436,7 @@ class _Phase:
                 if correction.how in ("shifted", "replanned", "kept")
                 else None),
             achieved_grasp=result.achieved_grasp,
-            grasp_error=result.grasp_error))
+            grasp_error=result.grasp_error, plan=self.plan))
         how = "" if result.success else f" ({self.attempts[-1].ending})"
         self.report(f"throw {self.throws}: cell {cell} (h_catch {h_catch:.2f}"
                     f" m, h_down {h_down:.2f} m): {result.outcome}{how}, "

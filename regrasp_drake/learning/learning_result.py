@@ -47,6 +47,8 @@ class Attempt:
     # held) and its error against the target.
     achieved_grasp: dict | None = None
     grasp_error: dict | None = None
+    # The plan the throw waited under (throw_catch.CatchPlan; not reported).
+    plan: CatchPlan | None = None
 
     @property
     def caught(self) -> bool:

@@ -12,7 +12,7 @@ from regrasp_drake import atomic_io, numerics
 from regrasp_drake.errors import InputError
 from regrasp_drake.input_files import parse_yaml, read_text
 from regrasp_drake.learning.dataset_files import load_provenance
-from regrasp_drake.paths import REPO_DIR, SDF_DIR
+from regrasp_drake.paths import PACKAGE_DIR, REPO_DIR, SDF_DIR
 from regrasp_drake.station.scenario import load_scenario, scenario_yaml
 
 # The robot's model files (the arm, the hand and their directives), which
@@ -147,10 +147,14 @@ def code_version() -> str:
     """The git commit (when known) and a hash of the package's and models'
     source files, which identifies uncommitted code too."""
     digest = hashlib.sha256()
-    root = REPO_DIR
-    for path in sorted(list((root / "regrasp_drake").rglob("*.py"))
-                       + list((root / "sdf").rglob("*.*"))):
-        digest.update(str(path.relative_to(root)).encode())
+    # Named as in the checkout (regrasp_drake/…, sdf/…) wherever the
+    # package runs, so that an installed copy hashes as its checkout does.
+    files = sorted([(Path("regrasp_drake", p.relative_to(PACKAGE_DIR)), p)
+                    for p in PACKAGE_DIR.rglob("*.py")]
+                   + [(Path("sdf", p.relative_to(SDF_DIR)), p)
+                      for p in SDF_DIR.rglob("*.*")])
+    for name, path in files:
+        digest.update(str(name).encode())
         digest.update(path.read_bytes())
     return git_version() + " sources-sha256:" + digest.hexdigest()[:16]
 
@@ -158,6 +162,8 @@ def code_version() -> str:
 def git_version() -> str:
     """The repository's commit, with "+dirty" when its code or models have
     uncommitted changes; "unknown" outside a git checkout."""
+    if REPO_DIR is None:  # installed: no checkout to ask
+        return "unknown"
     try:
         commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO_DIR,
                                 capture_output=True, text=True, check=True)

@@ -35,8 +35,13 @@ from regrasp_drake.episode.replay import make_meshcat, write_html
 class RunReplay:
     """A Meshcat for every episode of a run, and their combined animation."""
 
-    def __init__(self, gap_s: float = 0.5):
-        self.meshcat = make_meshcat()
+    def __init__(self, gap_s: float = 0.5, meshcat=None):
+        """gap_s: the still time between two throws, [s]; meshcat: where
+        the episodes are drawn and recorded, e.g. Drake's StartMeshcat()
+        in a notebook (default: a new one on loopback, `make_meshcat`)."""
+        self.meshcat = make_meshcat() if meshcat is None else meshcat
+        # An earlier run's marks (throw_catch.save_replay's) on a reused one.
+        self.meshcat.Delete("/replay")
         self._gap_s = gap_s      # still time between two throws, [s]
         self._offset_s = 0.0     # where the next episode starts, [s]
         self._animation = None
@@ -118,13 +123,18 @@ def _published_animation(html: str) -> dict | None:
 
 def unpack(data: bytes):
     """Decodes one MessagePack value (the subset Meshcat writes: nil,
-    booleans, integers, floats, strings, binary, arrays, maps)."""
+    booleans, integers, floats, strings, binary, extensions (as their
+    bytes), arrays, maps)."""
     value, end = _unpack(memoryview(data), 0)
     if end != len(data):
         raise ValueError(f"{len(data) - end} bytes after the MessagePack value")
     return value
 
 
+# Extension types: ext 8/16/32 by the width of their length, [bytes], and
+# fixext by their data's length, [bytes]; decoded as their bytes.
+_EXT = {0xC7: 1, 0xC8: 2, 0xC9: 4}
+_FIXEXT = {0xD4: 1, 0xD5: 2, 0xD6: 4, 0xD7: 8, 0xD8: 16}
 _FIXED = {0xCC: ">B", 0xCD: ">H", 0xCE: ">I", 0xCF: ">Q", 0xD0: ">b",
           0xD1: ">h", 0xD2: ">i", 0xD3: ">q", 0xCA: ">f", 0xCB: ">d"}
 
@@ -150,6 +160,10 @@ def _unpack(b: memoryview, i: int):
     if tag in _FIXED:
         fmt = _FIXED[tag]
         return struct.unpack_from(fmt, b, i)[0], i + struct.calcsize(fmt)
+    if tag in _EXT or tag in _FIXEXT:  # typed arrays (a line's points)
+        n = _FIXEXT.get(tag) or int.from_bytes(b[i:i + _EXT[tag]], "big")
+        i += _EXT.get(tag, 0) + 1  # the length, then the ext's type
+        return bytes(b[i:i + n]), i + n
     sizes = {0xD9: (1, "s"), 0xDA: (2, "s"), 0xDB: (4, "s"),
              0xC4: (1, "b"), 0xC5: (2, "b"), 0xC6: (4, "b"),
              0xDC: (2, "a"), 0xDD: (4, "a"), 0xDE: (2, "m"), 0xDF: (4, "m")}

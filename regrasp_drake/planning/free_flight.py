@@ -7,7 +7,7 @@ States use the plant's layout for a free body (13 rows): the quaternion
 v_WO (m/s, the velocity of O's origin, in W).
 """
 
-from types import SimpleNamespace
+import dataclasses as dc
 
 import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
@@ -113,6 +113,21 @@ def flight_from_release(state, t0, obj, scenario):
     return as_watched(*sampled_flight(state, t0, obj, scenario))
 
 
-def as_watched(t, states):
+@dc.dataclass(frozen=True)
+class FlightLogs:
+    """A flight's object states at its sample times, as an episode logs
+    them (episode.simulate.Logs' fields of the object)."""
+    t: np.ndarray             # (n,) [s]
+    object_state: np.ndarray  # (13, n): quaternion wxyz, p_WO, w_WO, v_WO
+
+
+@dc.dataclass(frozen=True)
+class WatchedFlight:
+    """A flight seen or predicted, read by plan_catch as it reads a watching
+    throw's EpisodeResult (its `.logs`)."""
+    logs: FlightLogs
+
+
+def as_watched(t, states) -> WatchedFlight:
     """(t, states) in the shape plan_catch reads: .logs.t, .logs.object_state."""
-    return SimpleNamespace(logs=SimpleNamespace(t=t, object_state=states))
+    return WatchedFlight(FlightLogs(t=t, object_state=states))

@@ -1,0 +1,298 @@
+"""The public face: from an object and a grasp to a regrasp, in a few lines.
+
+    import regrasp_drake as rd
+    obj = rd.load_object("table1-row2")
+    run = rd.regrasp(obj, rd.Target("flip"), first_throw=True)
+    print(run.success, run.achieved_grasp, run.throws)
+    run.save_replay("replay.html"); run.plot("sensors.png")
+
+`regrasp`, `learn`, `catch` and `apply` are the command line's commands of
+those names with their defaults (docs/commands.md); the commands, the
+examples and the notebook call them. The main job (watch, plan, predict the
+cell, catch, search) is the learning phase's (learning/learning_phase.py);
+one catch attempt with given parameters is throw_catch.catch_once's.
+
+Each returns a `Run`. Its episodes are drawn on `meshcat` (Drake's
+StartMeshcat() in a notebook, or any Meshcat; default: a private one on
+loopback, for the replay) unless replay=False, and recorded, so that
+`Run.save_replay` writes them as one self-contained HTML file.
+"""
+
+import dataclasses as dc
+import sys
+from pathlib import Path
+
+import torch
+
+from regrasp_drake.episode.run import EpisodeResult
+from regrasp_drake.errors import InputError, field_error
+from regrasp_drake.learning.flight_predictor import FlightPredictor
+from regrasp_drake.learning.learning_phase import apply_learned
+from regrasp_drake.learning.learning_phase import learn as learning_phase
+from regrasp_drake.learning.library import DEFAULT_LIBRARY, lookup
+from regrasp_drake.learning.offset_prior import OffsetPrior
+from regrasp_drake.learning.run_replay import RunReplay
+from regrasp_drake.paths import MODELS_DIR, OUT_DIR
+from regrasp_drake.planning.grasp import Target, check_reachable
+from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.plots import plot_episode
+from regrasp_drake.station import scenario as scenarios
+from regrasp_drake.station.mlp_system import CatchMlp, load_weights
+from regrasp_drake.station.scenario import Scenario, target_of, with_target
+from regrasp_drake.station.scenario_checks import check_catch_parameters
+from regrasp_drake.throw_catch import catch_once, episode_caption, save_replay
+from regrasp_drake.world.objects import ObjectSpec, resolve_object
+
+# Where `learn` stores what it learned and `apply` looks it up by default
+# (the command line's --library default).
+DEFAULT_LIBRARY_PATH = OUT_DIR / DEFAULT_LIBRARY
+
+
+def load_object(name: str | None = None, *, file=None) -> ObjectSpec:
+    """A catalogue object by name (`regrasp-drake objects` lists them), or
+    an object of a YAML file in the catalogue's format (examples/
+    my_object.yaml): its first, or the one called `name`."""
+    return resolve_object(name=name, file=None if file is None else Path(file))
+
+
+def load_scenario(name: str | None = None, *, file=None,
+                  text: str | None = None,
+                  target: Target | str | None = None) -> Scenario:
+    """A scenario: `name` of the shipped named scenarios (default "Default";
+    "Fast" runs at a 1 ms step throughout), or of `file`'s, or `file` itself
+    when it holds one scenario; `text`: YAML fields that replace its own
+    (as --scenario-text); `target`: the grasp to aim for (a Target or its
+    kind), which picks the target's throw."""
+    scenario = scenarios.load_scenario(file, name=name, text=text)
+    return scenario if target is None else with_target(scenario,
+                                                       _target(target))
+
+
+@dc.dataclass
+class Run:
+    """What `regrasp`, `learn`, `catch` and `apply` return: how the run
+    ended, its last episode and, for a learning phase, all it reports."""
+    object: str
+    success: bool       # held in the target grasp (any grasp for `any`)
+    throws: int         # throws made, a watching throw included
+    episode: EpisodeResult  # the last throw (its logs: `plot`)
+    plan: object = None     # the catch plan (throw_catch.CatchPlan), if any
+    learning: object = None  # learning_result.LearningResult, for a phase
+    replay: RunReplay | None = None  # every throw's recording, if recorded
+    scenario: Scenario | None = None  # the scenario it ran under
+    entry: object = None  # the library entry `apply` caught with
+
+    @property
+    def achieved_grasp(self) -> dict | None:
+        """The grasp the last throw ends in (planning/grasp.py: kind,
+        offset_mm along the axis, tilt_deg…), None when not held."""
+        return self.episode.achieved_grasp
+
+    def regrasp_line(self) -> str:
+        """e.g. "flip, +0 mm: achieved flip, +3 mm, tilt 12°"."""
+        return self.episode.regrasp_line()
+
+    def summary(self) -> dict:
+        """The learning phase's report, or the one throw's summary; JSON."""
+        if self.learning is not None:
+            return self.learning.as_dict()
+        return self.episode.summary() | (
+            {} if self.plan is None else {"plan": self.plan.as_dict()})
+
+    def save_replay(self, path) -> str:
+        """Writes the run's Meshcat replay to path, one self-contained HTML
+        file: a run of one catching throw with its plan drawn (its path, the
+        planned catch point, the palm's wait pose; views on the flight and
+        the catch), else every throw one after the other. Returns path."""
+        if self.replay is None:
+            raise InputError("save_replay: the run was not recorded "
+                             "(replay=False), expected a recorded run")
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        if self.replay.episodes == 1 and self.plan is not None:
+            return save_replay(self.replay.meshcat, path, self.episode,
+                               self.plan, ArmIk(self.scenario.directives),
+                               caption=episode_caption(self.episode))
+        return self.replay.save(path)
+
+    def plot(self, path) -> Path:
+        """Writes a PNG of the last throw's sensors over time (the paper's
+        Fig. 11) and the object's height and tilt. Returns path."""
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        return plot_episode(self.episode, Path(path))
+
+
+def catch(obj: ObjectSpec, h_catch: float, h_down: float, *,
+          scenario: Scenario | None = None, meshcat=None,
+          replay: bool = True) -> Run:
+    """`regrasp-drake catch`: a watching throw, the catch planned under its
+    flight, and one catch attempt with (h_catch, h_down), [m] (the paper's
+    parameter space: 0 … 0.40, -0.14 … 0)."""
+    check_catch_parameters(h_catch, h_down, names=("h_catch", "h_down"))
+    scenario = _checked(scenario, obj)
+    recording = _recording(meshcat, replay)
+    episode, plan = catch_once(
+        scenario, obj, h_catch=h_catch, h_down=h_down,
+        meshcat=None if recording is None else recording.meshcat)
+    if recording is not None:
+        recording.add_episode(episode.sim_time_s)
+    return _run(scenario, obj.name, episode, plan=plan, replay=recording)
+
+
+def learn(obj: ObjectSpec, *, scenario: Scenario | None = None,
+          target: Target | str | None = None, first_throw: bool = False,
+          at_release: bool = False, max_throws: int | None = None,
+          search: str = "wavefront", weights=None, flight_model=None,
+          offset_prior=None, library=DEFAULT_LIBRARY_PATH,
+          meshcat=None, replay: bool = True, progress=sys.stderr,
+          scenario_label: str = "defaults",
+          object_source: str = "catalogue") -> Run:
+    """`regrasp-drake learn`: the learning phase on `obj` (paper Fig. 1):
+    watch, plan, the network's cell, catch, and search the parameter space
+    until a catch (learning/learning_phase.py).
+
+    target: the grasp to end in (a Target or its kind; default the
+    scenario's regrasp.target). first_throw: no watching throw, the catch
+    planned from the flight predictor (`flight_model`, a path or a loaded
+    FlightPredictor; default models/flight_predictor.json); at_release: each
+    throw plans its own catch at its release. max_throws: stop after so
+    many throws (default: until a catch or every cell is tried). search:
+    "wavefront" (the paper's) or "map-prior". weights: the network (a path
+    or a loaded CatchMlp; default the scenario's catch.weights in models/).
+    offset_prior: a path or a loaded OffsetPrior (default none). library:
+    where a catch is stored (None: not stored). progress: a stream for one
+    line per throw (None: quiet). scenario_label, object_source: what the
+    library records of where the scenario and the object came from."""
+    torch.set_num_threads(1)
+    scenario = _checked(scenario, obj, target)
+    recording = _recording(meshcat, replay)
+    episodes = []
+
+    def on_episode(result):
+        episodes.append(result)
+        if recording is not None:
+            recording.add_episode(result.sim_time_s)
+
+    result = learning_phase(
+        scenario, obj, load_network(weights, scenario), library_path=library,
+        scenario_label=scenario_label, object_source=object_source,
+        max_throws=max_throws,
+        flight_predictor=(load_flight_predictor(flight_model)
+                          if first_throw else None),
+        at_release=at_release, search=search,
+        offset_prior=load_offset_prior(offset_prior, scenario),
+        meshcat=None if recording is None else recording.meshcat,
+        on_episode=on_episode, progress=progress)
+    # The plan of the last catching throw (a later one's, after an offset
+    # correction, never ran).
+    plan = result.attempts[-1].plan if result.attempts else result.plan
+    return _run(scenario, obj.name, episodes[-1], plan=plan,
+                learning=result, replay=recording, success=result.success,
+                throws=result.throws)
+
+
+def regrasp(obj: ObjectSpec, target: Target | str, *,
+            first_throw: bool = False, **options) -> Run:
+    """`regrasp-drake regrasp`: the learning phase aiming for `target` (a
+    Target, e.g. Target("flip", offset_mm=0), or its kind: keep, flip, turn,
+    any); first_throw: catch on throw 1, planned from the flight predictor;
+    `options` as `learn`'s."""
+    return learn(obj, target=target, first_throw=first_throw, **options)
+
+
+def apply(obj: ObjectSpec, *, library=DEFAULT_LIBRARY_PATH,
+          scenario: Scenario | None = None, meshcat=None,
+          replay: bool = True) -> Run:
+    """`regrasp-drake apply`: one throw, caught with the grasp pose and
+    parameters `learn` stored for `obj` in `library` under this
+    scenario."""
+    scenario = _checked(scenario, obj)
+    entry = lookup(library, obj.name)
+    recording = _recording(meshcat, replay)
+    episode = apply_learned(
+        scenario, obj, entry,
+        meshcat=None if recording is None else recording.meshcat)
+    if recording is not None:
+        recording.add_episode(episode.sim_time_s)
+    return _run(scenario, obj.name, episode, replay=recording, entry=entry)
+
+
+def load_network(weights, scenario: Scenario, *, field: str = "weights"):
+    """The catch network: `weights` loaded (a path; a CatchMlp as it is;
+    None: the scenario's catch.weights in models/). InputError names
+    `field` and the file."""
+    if isinstance(weights, CatchMlp):
+        return weights
+    path = weights or MODELS_DIR / scenario.catch.weights
+    try:
+        return load_weights(path)[0]
+    except InputError as e:
+        label = field if weights else (f"{field} (default: the scenario's "
+                                       "catch.weights)")
+        raise InputError(f"{label}: {e}") from None
+
+
+def load_flight_predictor(flight_model=None, *, field: str = "flight_model"):
+    """The first-throw mode's flight predictor: a path loaded (None:
+    models/flight_predictor.json), a FlightPredictor as it is."""
+    if isinstance(flight_model, FlightPredictor):
+        return flight_model
+    try:
+        return FlightPredictor.load(flight_model
+                                    or MODELS_DIR / "flight_predictor.json")
+    except InputError as e:
+        raise InputError(f"{field}: {e}") from None
+
+
+def load_offset_prior(offset_prior, scenario: Scenario, *,
+                      field: str = "offset_prior"):
+    """The offset prior for a scenario aiming for a target: a path loaded,
+    an OffsetPrior as it is; None without one, or for target `any`."""
+    if scenario.regrasp.target == "any" or offset_prior is None:
+        return None
+    if isinstance(offset_prior, OffsetPrior):
+        return offset_prior
+    try:
+        return OffsetPrior.load(offset_prior)
+    except InputError as e:
+        raise InputError(f"{field}: {e}") from None
+
+
+def _target(target: Target | str) -> Target:
+    if isinstance(target, Target):
+        return target
+    if isinstance(target, str):
+        return Target(target)
+    raise field_error("target", target, "a Target or one of its kinds "
+                                        "(keep, flip, turn, any)")
+
+
+def _checked(scenario: Scenario | None, obj: ObjectSpec,
+             target: Target | str | None = None) -> Scenario:
+    """The scenario (None: the shipped default) aiming for `target` (None:
+    its own), refused when the target is out of the object's reach."""
+    if scenario is None:
+        scenario = load_scenario()
+    elif not isinstance(scenario, Scenario):
+        raise field_error("scenario", scenario,
+                          "a Scenario (rd.load_scenario) or None")
+    if not isinstance(obj, ObjectSpec):
+        raise field_error("obj", obj, "an object (rd.load_object)")
+    if target is not None:
+        scenario = with_target(scenario, _target(target))
+    check_reachable(target_of(scenario), obj)
+    return scenario
+
+
+def _recording(meshcat, replay: bool) -> RunReplay | None:
+    """Where a run's throws are drawn and recorded: `meshcat` (any Meshcat)
+    or, when replay is True, a private one; None: not drawn."""
+    if meshcat is None and not replay:
+        return None
+    return RunReplay(meshcat=meshcat)
+
+
+def _run(scenario: Scenario, name: str, episode: EpisodeResult, *,
+         success: bool | None = None, throws: int = 1, **fields) -> Run:
+    return Run(object=name, episode=episode, throws=throws,
+               success=episode.success if success is None else success,
+               scenario=scenario, **fields)
