@@ -42,6 +42,7 @@ from regrasp_drake.planning.grasp import Target, check_reachable
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.mlp_system import load_weights
 from regrasp_drake.station.scenario import scenario_digest, with_target
+from regrasp_drake.throw_catch import planned_grasp
 from regrasp_drake.world.objects import load_catalogue, resolve_object
 
 DEFAULT_TARGETS = [f"{kind}:{offset}" for kind in ("keep", "flip")
@@ -66,10 +67,16 @@ def run_one(scenario, obj, model, ik, mode, max_throws, predictor,
                 "success": False, "caught": False,
                 "throws": getattr(e, "throws", 1)}
     d = result.as_dict()
+    # The landing model's prediction before the first catching throw: the
+    # grasp the plan's palm holds the object in as it is at the catch point
+    # (studies/landing: it rests where it first touches).
+    predicted = planned_grasp(scenario, obj, result.plan.catch_point,
+                              result.plan.X_WG)
     return {k: d[k] for k in ("success", "caught", "throws", "stopped",
                               "start_grasp", "achieved_grasp", "grasp_error",
                               "wall_s")} | {
-        "attempts": [a["outcome"] for a in d["attempts"]]}
+        "attempts": [a["outcome"] for a in d["attempts"]],
+        "predicted_grasp": predicted.as_dict()}
 
 
 _MODELS = {}
@@ -125,6 +132,7 @@ def landing(rows: list[dict]) -> dict:
     def median(values):
         return round(float(np.median(values)), 2) if values else None
 
+    predicted = [r for r in right if r.get("predicted_grasp")]
     return {
         "pairs": len(rows), "refused": len(rows) - len(done),
         "in_target": len(ok),
@@ -134,7 +142,15 @@ def landing(rows: list[dict]) -> dict:
             [abs(r["grasp_error"]["offset_error_mm"]) for r in right]),
         "median_tilt_deg": median(
             [r["grasp_error"]["axis_error_deg"] for r in right]),
-        "misses": misses}
+        "misses": misses,
+        # The landing model against the grasp achieved, of those held the
+        # right way round.
+        "median_abs_predicted_offset_error_mm": median(
+            [abs(r["predicted_grasp"]["offset_mm"]
+                 - r["achieved_grasp"]["offset_mm"]) for r in predicted]),
+        "median_abs_predicted_tilt_error_deg": median(
+            [abs(r["predicted_grasp"]["tilt_deg"]
+                 - r["achieved_grasp"]["tilt_deg"]) for r in predicted])}
 
 
 def summarize(rows: list[dict], targets, modes, level: float) -> dict:

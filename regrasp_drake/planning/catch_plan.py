@@ -230,7 +230,8 @@ def palm_poses_for(catch_point: CatchPoint, grasp_radius_m: float,
                    across_com_fraction: float = 1.0,
                    toward_landing_end_m: float = 0.0,
                    toward_fingers_m: float = 0.0,
-                   along_axis_m: float = 0.0) -> list[RigidTransform]:
+                   along_axis_m: float = 0.0,
+                   com_along_normal: bool = False) -> list[RigidTransform]:
     """The palm's poses under a catch point, preferred first: the fingertips
     (palm +x, the paper's z_k) horizontal and perpendicular to the object's
     axis; first on the side the paper's θ construction picks (eqs. 2-5), then
@@ -255,7 +256,12 @@ def palm_poses_for(catch_point: CatchPoint, grasp_radius_m: float,
     that much nearer the fingers, inside the cage they close
     (studies/hand_design: both measured with the 115 mm palm). Last, the
     palm slides `along_axis_m` toward the object's +y end (a regrasp
-    target's offset, planning/grasp.py)."""
+    target's offset, planning/grasp.py).
+
+    `com_along_normal`: the offsets above are kept along the palm's own
+    (tilted) y rather than horizontally, so that a palm tilted by α does not
+    put the centre of mass, h above it, h·tan α off its centre along y
+    (studies/landing: +12 mm under keep for Table 1 rows 1-3)."""
     y = catch_point.y_W.copy()
     y[2] = 0.0
     y /= np.linalg.norm(y)
@@ -289,6 +295,13 @@ def palm_poses_for(catch_point: CatchPoint, grasp_radius_m: float,
         p = p_WP - toward_fingers_m * R_WP[:, 0]
         p[2] = (lowest_point_along(obj, R_WO, catch_point.p_WO, z_W)
                 - palm_clearance_m - p[:2] @ z_W[:2]) / z_W[2]
+        if com_along_normal:
+            # Slide the palm in its own plane until the centre of mass's
+            # offset along the tilted y is the horizontal plan's.
+            y_W = R_WP[:, 1]
+            y_h = np.array([y_W[0], y_W[1], 0.0]) / np.linalg.norm(y_W[:2])
+            p_WC = catch_point.p_WO + R_WO @ obj.p_OCm
+            p = p + ((p_WC - p) @ y_W - (p_WC - p_WP) @ y_h) * y_W
         poses.append(RigidTransform(RotationMatrix(R_WP), p))
     return poses
 

@@ -179,6 +179,8 @@ def _check_catch(s) -> None:
     _in_range("catch.palm_com_margin_m", k.palm_com_margin_m, 0.0, 0.05, " m")
     _in_range("catch.palm_toward_landing_end_m", k.palm_toward_landing_end_m,
               0.0, 0.03, " m")
+    _in_range("catch.target_palm_toward_landing_end_m",
+              k.target_palm_toward_landing_end_m, 0.0, 0.03, " m")
     _in_range("catch.palm_toward_fingers_m", k.palm_toward_fingers_m, 0.0,
               0.03, " m")
     _in_range("catch.palm_across_com_fraction", k.palm_across_com_fraction,
