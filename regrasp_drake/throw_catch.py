@@ -119,19 +119,21 @@ def catch_palm_poses(scenario: Scenario, point, obj: ObjectSpec):
     """The palm's poses under a catch point (`palm_poses_for`, preferred
     side first) with the scenario's catch settings, the palm slid along the
     object's axis by the target's offset. Under a grasp target the palm
-    waits for the grasp the object is to rest in (no shift toward the
-    landing end: catch.target_palm_toward_landing_end_m)."""
+    waits for the grasp the object is to rest in: no shift toward the
+    landing end (catch.target_palm_toward_landing_end_m), the offsets kept
+    along the tilted palm (catch.target_palm_com_along_normal)."""
     c = scenario.catch
+    held_at_all = target_of(scenario).kind == "any"
     return palm_poses_for(
         point, obj.grasp_radius, obj=obj, com_margin_m=c.palm_com_margin_m,
         max_palm_tilt_rad=palm_max_tilt_rad(c),
         across_com_fraction=c.palm_across_com_fraction,
-        toward_landing_end_m=(c.palm_toward_landing_end_m
-                              if target_of(scenario).kind == "any"
+        toward_landing_end_m=(c.palm_toward_landing_end_m if held_at_all
                               else c.target_palm_toward_landing_end_m),
         toward_fingers_m=c.palm_toward_fingers_m,
         along_axis_m=1e-3 * scenario.regrasp.offset_mm,
-        com_along_normal=c.palm_com_along_normal)
+        com_along_normal=(not held_at_all
+                          and c.target_palm_com_along_normal))
 
 
 def palm_max_tilt_rad(catch) -> float:

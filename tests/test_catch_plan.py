@@ -224,6 +224,63 @@ class TestPalmPose(unittest.TestCase):
                                toward_landing_end_m=0.01)[0]
         np.testing.assert_array_equal(moved.translation(),
                                       plain.translation())
+    def test_a_grasp_target_waits_for_the_resting_grasp(self):
+        # Under a grasp target the palm is not shifted toward the landing
+        # end (the object rests where it first touches, studies/landing);
+        # under `any` it is, by catch.palm_toward_landing_end_m.
+        from regrasp_drake.planning.grasp import Target
+        from regrasp_drake.station.scenario import with_target
+        from regrasp_drake.throw_catch import catch_palm_poses
+        obj = load_catalogue()["table1-row2"]
+        c = CatchPoint(t_s=1.0, p_WO=np.array([0.8, -0.1, 0.7]),
+                       y_W=np.array([0.0, 1.0, 0.0]), v_catch=-3.0, tilt=0.0,
+                       R_WO=np.eye(3), w_W=np.array([5.5, 0.0, 0.0]))
+        scenario = load_scenario()
+        plain = palm_poses_for(
+            c, obj.grasp_radius, obj=obj,
+            com_margin_m=scenario.catch.palm_com_margin_m,
+            toward_fingers_m=scenario.catch.palm_toward_fingers_m
+        )[0].translation()
+        held = catch_palm_poses(scenario, c, obj)[0].translation()
+        self.assertAlmostEqual(held[1] - plain[1],
+                               -scenario.catch.palm_toward_landing_end_m)
+        for kind in ("keep", "flip"):
+            with self.subTest(kind=kind):
+                target = with_target(scenario, Target(kind, 0.0))
+                np.testing.assert_allclose(
+                    catch_palm_poses(target, c, obj)[0].translation(), plain,
+                    atol=1e-12)
+
+    def test_offsets_along_a_tilted_palm(self):
+        # An axis tilted 10° up toward +y: the palm tilts with it, and with
+        # com_along_normal the centre of mass lies on the palm's normal
+        # through its centre (offset 0 along the tilted y) instead of
+        # h·tan α off it.
+        obj = load_catalogue()["table1-row2"]
+        a = np.radians(10.0)
+        R_WO = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(a), -np.sin(a)],
+                         [0.0, np.sin(a), np.cos(a)]])
+        c = CatchPoint(t_s=1.0, p_WO=np.array([0.8, -0.1, 0.7]),
+                       y_W=R_WO[:, 1], v_catch=-3.0, tilt=np.sin(a),
+                       R_WO=R_WO)
+        p_WC = c.p_WO + R_WO @ obj.p_OCm
+        for along_normal in (False, True):
+            X_WP = palm_poses_for(c, obj.grasp_radius, obj=obj,
+                                  com_margin_m=0.0,
+                                  com_along_normal=along_normal)[0]
+            y_W = X_WP.rotation().matrix()[:, 1]
+            self.assertAlmostEqual(abs(y_W[2]), np.sin(a), places=9)
+            along = (p_WC - X_WP.translation()) @ y_W
+            height = (p_WC - X_WP.translation()) @ X_WP.rotation().matrix()[
+                :, 2]
+            with self.subTest(along_normal=along_normal):
+                if along_normal:
+                    self.assertAlmostEqual(along, 0.0, places=9)
+                else:
+                    self.assertAlmostEqual(abs(along),
+                                           height * np.tan(a), places=6)
+
+
 class TestInverseKinematics(unittest.TestCase):
     @classmethod
     def setUpClass(cls):

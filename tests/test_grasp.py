@@ -25,6 +25,7 @@ from regrasp_drake.station.scenario import (
     with_target,
 )
 from regrasp_drake.station.station import build_episode_diagram, initialize
+from regrasp_drake.throw_catch import planned_grasp
 from regrasp_drake.world.objects import resolve_object
 
 FLIP = RotationMatrix.MakeXRotation(np.pi)
@@ -162,10 +163,11 @@ class RegraspCaughtTest(unittest.TestCase):
         model, _ = load_weights(MODELS_DIR / base.catch.weights)
         predictor = FlightPredictor.load(MODELS_DIR / "flight_predictor.json")
         for name, target in (("table1-row2", Target("flip")),
-                             ("table1-row1", Target("keep", -30.0))):
+                             ("table1-row4", Target("keep", 30.0))):
             with self.subTest(object=name, target=target):
                 scenario = with_target(base, target)
-                result = learn(scenario, resolve_object(name=name), model,
+                obj = resolve_object(name=name)
+                result = learn(scenario, obj, model,
                                max_throws=1, progress=None,
                                flight_predictor=predictor)
                 self.assertTrue(result.success, result.as_dict()["attempts"])
@@ -177,6 +179,14 @@ class RegraspCaughtTest(unittest.TestCase):
                     grasp.OFFSET_TOLERANCE_MM)
                 self.assertLessEqual(achieved["tilt_deg"],
                                      grasp.AXIS_TOLERANCE_DEG)
+                # The landing model (the plan's grasp, fitted on nothing)
+                # predicted the resting offset before the throw.
+                predicted = planned_grasp(scenario, obj,
+                                          result.plan.catch_point,
+                                          result.plan.X_WG)
+                self.assertEqual(predicted.axis, achieved["axis"])
+                self.assertLessEqual(
+                    abs(predicted.offset_mm - achieved["offset_mm"]), 5.0)
 
 
 class TargetInProvenanceTest(unittest.TestCase):

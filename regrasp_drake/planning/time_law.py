@@ -39,3 +39,15 @@ def quintic(tau):
     ds = 30 * tau**2 * (1 - tau) ** 2
     dds = 60 * tau * (1 - tau) * (1 - 2 * tau)
     return s, ds, dds
+
+
+def ease_in(tau):
+    """Time law s(τ) = 2τ³ - τ⁴, s'(τ), s''(τ): from rest at τ = 0 to s = 1
+    at τ = 1 moving at twice the mean speed (s' = 2, s'' = 0), then on at
+    that speed (s = 1 + 2(τ - 1)) (τ a number or an array)."""
+    tau = np.maximum(tau, 0.0) if np.ndim(tau) else max(tau, 0.0)
+    u = np.minimum(tau, 1.0) if np.ndim(tau) else min(tau, 1.0)
+    s = u**3 * (2.0 - u) + 2.0 * (tau - u)
+    ds = u**2 * (6.0 - 4.0 * u)
+    dds = 12.0 * u * (1.0 - u)
+    return s, ds, dds

@@ -15,7 +15,10 @@ Phases, in order:
           the object closer than h_catch;
   LOWER   the fingers close at their maximum speed while the hand is lowered
           by |h_down|; lowering stops as soon as a palm sensor (IR 1-3) reads
-          below the stop level (Fig. 9 line 13);
+          below the stop level (Fig. 9 line 13) (with
+          catch.lower_ends_moving, the lowering ends moving down at twice
+          its mean speed rather than at rest, so that the palm meets the
+          falling object moving with it);
   RETURN  the hand goes back up to the grasp position (with
           catch.return_from_motion, from the lowering's moving state: the
           hand goes on down as the object lands and turns back smoothly, a
@@ -63,7 +66,7 @@ from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 from pydrake.trajectories import PiecewisePolynomial
 
 from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.planning.time_law import quintic, quintic_from
+from regrasp_drake.planning.time_law import ease_in, quintic, quintic_from
 from regrasp_drake.station.palm_toss import TossDesign, toss_trajectory
 from regrasp_drake.station.throw import end_s, free_time_s, let_go_time_s
 from regrasp_drake.world.robot import HAND_JOINTS
@@ -231,6 +234,7 @@ class CatchStateMachine(LeafSystem):
         self._preshape_to_closed = _Ramp(self._preshape, self._closed,
                                          finger_speed_rad_per_s)
         self._cushion = scenario.catch.return_from_motion
+        self._lower_moving = scenario.catch.lower_ends_moving
         self._park_q = np.asarray(park_q, float)
         self._watching = self.DeclareNumericParameter(
             BasicVector([float(watching)]))
@@ -356,6 +360,12 @@ class CatchStateMachine(LeafSystem):
             return self._throw_reference(tau)
         T = x[_T]
         tau = (t - x[_T0]) / T
+        if self._lower_moving and x[_PHASE] == _LOWER:
+            # The lowering ends moving down (and goes on so until the
+            # return takes over from its motion).
+            s, ds, dds = ease_in(tau)
+            dq = x[_QB] - x[_QA]
+            return x[_QA] + s * dq, ds / T * dq, dds / T**2 * dq
         if np.all(tau >= 1.0):  # the segment is done: rest at its end
             shape = np.shape(tau)[:1] + (6,)
             return (np.broadcast_to(x[_QB], shape), np.zeros(shape),

@@ -208,12 +208,14 @@ class CatchConfig:
     # (arcsin 0.3, 17.5°: parallel to the axis at every catch point). 0: the
     # palm waits level whatever the axis's tilt.
     palm_max_tilt_rad: typing.Optional[float] = None
-    # true: the palm's offsets from the centre of mass along the object's
-    # axis are kept along the tilted palm's y (the centre of mass projects
-    # along the palm's normal where the plan puts it); false: horizontally,
-    # so a palm tilted by α puts it h·tan α further (h its height above the
-    # palm) (studies/landing).
-    palm_com_along_normal: bool = False
+    # Under a grasp target, true: the palm's offsets from the centre of mass
+    # along the object's axis are kept along the tilted palm's y, so that
+    # the centre of mass projects along the palm's normal where the target
+    # puts it; false (and always under "any"): horizontally, so a palm
+    # tilted by α puts it h·tan α further (h its height above the palm:
+    # +12 mm under keep, -7 mm under flip for Table 1 rows 1-2,
+    # studies/landing).
+    target_palm_com_along_normal: bool = True
     # Along the object's axis the palm is centred under the grasp piece, but
     # shifted so that the centre of mass is at most this far from the palm's
     # centre (the palm is 0.115 m wide along the axis), [m]: 0, under the
@@ -280,6 +282,13 @@ class CatchConfig:
     # acceleration), so the hand goes on down as the object lands and turns
     # back smoothly within return_s, a cushion.
     return_from_motion: bool = True
+    # false (the paper's Fig. 9): the lowering is a quintic from rest to
+    # rest. true: its time law is 2τ³ - τ⁴, which ends moving down at twice
+    # its mean speed (lower_speed_m_per_s) and goes on so until the return
+    # takes over from that motion (needs return_from_motion): the palm
+    # meets the falling object moving with it, and yields after, instead of
+    # waiting for it at rest (studies/landing).
+    lower_ends_moving: bool = False
     # Where (h_catch, h_down) come from: "fixed" (the two values below) or
     # "mlp" (the network in `weights`).
     parameter_source: str = "fixed"

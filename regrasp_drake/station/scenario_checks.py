@@ -199,6 +199,10 @@ def _check_catch(s) -> None:
               " m/s")
     _in_range("catch.palm_stop_level", k.palm_stop_level, 0, n.levels)
     _in_range("catch.return_s", k.return_s, 0.05, 3.0, " s")
+    if k.lower_ends_moving and not k.return_from_motion:
+        raise field_error("catch.lower_ends_moving", k.lower_ends_moving,
+                          "false unless catch.return_from_motion is true (the "
+                          "return takes over from the lowering's motion)")
     if k.parameter_source not in _SOURCES:
         raise field_error("catch.parameter_source", k.parameter_source,
                           f"one of {_SOURCES}")
