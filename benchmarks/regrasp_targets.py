@@ -38,7 +38,8 @@ from regrasp_drake.learning.learning_phase import NoCatchPoint, learn
 from regrasp_drake.learning.offset_prior import OffsetPrior
 from regrasp_drake.learning.table1 import object_names
 from regrasp_drake.paths import MODELS_DIR
-from regrasp_drake.planning.grasp import Target, check_reachable
+from regrasp_drake.planning import grasp
+from regrasp_drake.planning.grasp import Target, check_reachable, miss_reason
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.mlp_system import load_weights
 from regrasp_drake.station.scenario import scenario_digest, with_target
@@ -110,24 +111,17 @@ def landing(rows: list[dict]) -> dict:
     each miss by its reason."""
     done = [r for r in rows if r["stopped"] != "refused"]
     ok = [r for r in done if r["success"]]
-    right = [r for r in done if r.get("caught") and r.get("grasp_error")
-             and r["grasp_error"]["axis_error_deg"] < 90.0
-             and r["grasp_error"]["side_ok"] is not False]
-    misses = {"no_catch_point": 0, "dropped": 0, "wrong_way_round": 0,
-              "tilted": 0, "off_offset": 0}
+    misses = dict.fromkeys(("no_catch_point", *grasp.MISS_REASONS), 0)
+    right = []
     for r in done:
-        if r["success"]:
-            continue
         if r["stopped"] == "no_catch_point":
-            misses["no_catch_point"] += 1
-        elif not r.get("caught"):
-            misses["dropped"] += 1
-        elif r not in right:
-            misses["wrong_way_round"] += 1
-        elif r["grasp_error"]["axis_error_deg"] > 20.0:
-            misses["tilted"] += 1
-        else:
-            misses["off_offset"] += 1
+            misses["no_catch_point"] += not r["success"]
+            continue
+        reason = miss_reason(r.get("caught", False), r.get("grasp_error"))
+        if reason is not None and not r["success"]:
+            misses[reason] += 1
+        if reason not in ("dropped", "wrong_way_round") and r["caught"]:
+            right.append(r)
 
     def median(values):
         return round(float(np.median(values)), 2) if values else None

@@ -1,6 +1,7 @@
 """The catch state machine's catch-tolerance fields: the cushioned return
-(catch.return_from_motion) and the distal joints' pre-shape
-(catch.preshape_distal_closure)."""
+(catch.return_from_motion), the distal joints' pre-shape
+(catch.preshape_distal_closure) and the lowering that ends moving
+(catch.lower_ends_moving)."""
 
 import unittest
 
@@ -91,6 +92,57 @@ class CushionedReturnTest(unittest.TestCase):
         np.testing.assert_allclose(q1, s.throw.toss.start_q_rad, atol=1e-12)
         np.testing.assert_array_equal(v1, np.zeros(6))
         np.testing.assert_array_equal(a1, np.zeros(6))
+
+
+class LoweringThatEndsMovingTest(unittest.TestCase):
+    """catch.lower_ends_moving: under a grasp target the lowering ends
+    moving down at twice its mean speed and goes on so; under "any" (the
+    paper's catch) it ends at rest."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.ik = ArmIk()
+
+    def _lowering(self, text: str, times):
+        s = load_scenario(text=text)
+        q_grasp = np.array(s.throw.toss.start_q_rad)
+        machine = csm.CatchStateMachine(
+            s, self.ik, robot.HAND_OPEN, robot.HAND_CLOSED,
+            robot.FINGER_MAX_SPEED, park_q=q_grasp)
+        dq = np.array([0.0, -0.05, 0.08, 0.0, -0.03, 0.0])
+        x = np.zeros(csm._SIZE)
+        csm.CatchStateMachine._start_segment(x, 1.0, q_grasp, q_grasp + dq,
+                                             0.1, csm.Phase.LOWER)
+        return dq, [machine._arm_reference(x, t) for t in times], s
+
+    def test_under_a_target_it_ends_moving(self):
+        dq, refs, s = self._lowering(
+            "{regrasp: {target: flip}}", (1.0, 1.05, 1.1, 1.12))
+        self.assertTrue(csm.lowers_moving(s))
+        (q0, v0, _), (_, v_mid, _), (q1, v1, a1), (q2, v2, _) = refs
+        np.testing.assert_array_equal(v0, np.zeros(6))
+        # s(τ) = 2τ³ - τ⁴: at τ = 1/2, s' = 1; at τ = 1, s' = 2, s'' = 0.
+        np.testing.assert_allclose(v_mid, dq / 0.1, atol=1e-9)
+        np.testing.assert_allclose(q1, q0 + dq, atol=1e-12)
+        np.testing.assert_allclose(v1, 2.0 * dq / 0.1, atol=1e-9)
+        np.testing.assert_allclose(a1, np.zeros(6), atol=1e-9)
+        # Past its end it goes on at that speed until the return.
+        np.testing.assert_allclose(q2, q1 + 0.02 * v1, atol=1e-12)
+        np.testing.assert_allclose(v2, v1, atol=1e-12)
+
+    def test_under_any_it_ends_at_rest(self):
+        _, refs, s = self._lowering("{regrasp: {target: any}}", (1.1,))
+        self.assertFalse(csm.lowers_moving(s))
+        np.testing.assert_array_equal(refs[0][1], np.zeros(6))
+
+    def test_needs_the_cushioned_return(self):
+        with self.assertRaises(InputError) as e:
+            load_scenario(text="{catch: {lower_ends_moving: true, "
+                               "return_from_motion: false}}")
+        self.assertIn("catch.lower_ends_moving", str(e.exception))
+        self.assertFalse(csm.lowers_moving(load_scenario(
+            text="{regrasp: {target: flip}, catch: {return_from_motion: "
+                 "false}}")))
 
 
 if __name__ == "__main__":

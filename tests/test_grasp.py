@@ -3,6 +3,7 @@
 import subprocess
 import sys
 import tempfile
+import types
 import unittest
 from pathlib import Path
 
@@ -187,6 +188,50 @@ class RegraspCaughtTest(unittest.TestCase):
                 self.assertEqual(predicted.axis, achieved["axis"])
                 self.assertLessEqual(
                     abs(predicted.offset_mm - achieved["offset_mm"]), 5.0)
+
+
+class SameMissTest(unittest.TestCase):
+    """Under a grasp target the search stops after MAX_SAME_MISSES throws in
+    a row missed the target the same way; under "any" it goes on."""
+
+    def _phase(self, kind):
+        from regrasp_drake.learning.learning_phase import _Phase
+        return _Phase(with_target(load_scenario(), Target(kind)),
+                      resolve_object(name="table1-row2"), None, None,
+                      prior=None, at_release=False, meshcat=None,
+                      on_episode=None, progress=None)
+
+    def test_reasons(self):
+        for held, error, reason in (
+                (False, None, "dropped"),
+                (True, {"axis_error_deg": 170.0, "offset_error_mm": 0.0,
+                        "side_ok": None}, "wrong_way_round"),
+                (True, {"axis_error_deg": 5.0, "offset_error_mm": 0.0,
+                        "side_ok": False}, "wrong_way_round"),
+                (True, {"axis_error_deg": 38.0, "offset_error_mm": 1.0,
+                        "side_ok": None}, "tilted"),
+                (True, {"axis_error_deg": 8.0, "offset_error_mm": -12.0,
+                        "side_ok": True}, "off_offset"),
+                (True, {"axis_error_deg": 8.0, "offset_error_mm": -9.0,
+                        "side_ok": True}, None)):
+            with self.subTest(reason=reason):
+                self.assertEqual(grasp.miss_reason(held, error), reason)
+
+    def test_stops_after_the_same_miss(self):
+        from regrasp_drake.learning.learning_phase import MAX_SAME_MISSES
+        tilted = types.SimpleNamespace(caught=True, grasp_error={
+            "axis_error_deg": 40.0, "offset_error_mm": 0.0, "side_ok": None})
+        dropped = types.SimpleNamespace(caught=False, grasp_error=None)
+        phase = self._phase("flip")
+        verdicts = [phase.same_miss(tilted)
+                    for _ in range(MAX_SAME_MISSES - 1)]
+        verdicts.append(phase.same_miss(dropped))  # another reason: anew
+        verdicts += [phase.same_miss(dropped)
+                     for _ in range(MAX_SAME_MISSES - 1)]
+        self.assertEqual(verdicts, [False] * (2 * MAX_SAME_MISSES - 2) + [True])
+        anything = self._phase("any")
+        self.assertFalse(any(anything.same_miss(dropped)
+                             for _ in range(2 * MAX_SAME_MISSES)))
 
 
 class TargetInProvenanceTest(unittest.TestCase):

@@ -228,7 +228,9 @@ class OneOfEverythingTest(unittest.TestCase):
         default = _leaves(parse_yaml(scenario_yaml(Scenario()), tags=True))
         # An optional field is not written at its default (None).
         self.assertEqual(ours.keys() - default.keys(),
-                         {"catch.preshape_distal_closure"})
+                         {"catch.preshape_distal_closure",
+                          "catch.palm_max_tilt_rad",
+                          "catch.lower_ends_moving"})
         self.assertEqual(default.keys() - ours.keys(), set())
         self.assertEqual([k for k in default if ours[k] == default[k]],
                          ["plant_config.contact_model",

@@ -150,6 +150,11 @@ def feasible_start(cell, ik: ArmIk, plan: CatchPlan):
 # How often a learning phase moves the palm along the axis after a throw held
 # at another offset than the target's (_Phase.correct_offset).
 MAX_OFFSET_CORRECTIONS = 3
+# Under a grasp target, a learning phase stops after this many throws in a
+# row missed the target for the same reason (grasp.miss_reason: dropped,
+# the wrong way round, tilted, off the offset), rather than trying all 150
+# cells: a miss every cell makes is the object's, not the cell's.
+MAX_SAME_MISSES = 10
 
 
 def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
@@ -215,6 +220,9 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
         phase.search.tell(result.outcome)
         if result.success:
             stopped = "caught"
+            break
+        if phase.same_miss(result):
+            stopped = "same_miss"
             break
         if phase.predicted:  # the predicted flight's plan failed
             stopped = phase.replan(result, max_throws)
@@ -290,6 +298,8 @@ class _Phase:
         self.palm_shift_m = 0.0
         self.offset_corrections = 0
         self.offset_prior = offset_prior
+        # The last throws' miss reason and how many in a row (`same_miss`).
+        self.misses = (None, 0)
 
     def report(self, line: str) -> None:
         if self.progress is not None:
@@ -443,6 +453,24 @@ class _Phase:
                     f"{result.sim_time_s:.2f} s simulated, "
                     f"{result.wall_s:.1f} s wall")
         return result
+
+    def same_miss(self, result: EpisodeResult) -> bool:
+        """Under a grasp target, after a throw that missed it: whether the
+        last MAX_SAME_MISSES throws all missed it for the same reason
+        (reported in one line naming the object, the target and the
+        reason)."""
+        target = target_of(self.scenario)
+        if target.kind == "any":
+            return False
+        reason = grasp.miss_reason(result.caught, result.grasp_error)
+        last, count = self.misses
+        self.misses = (reason, count + 1 if reason == last else 1)
+        if reason is None or self.misses[1] < MAX_SAME_MISSES:
+            return False
+        self.report(f"target {target.label()}: stopped: the last "
+                    f"{MAX_SAME_MISSES} throws all missed it the same way "
+                    f"({reason.replace('_', ' ')}): no cell seems to reach it")
+        return True
 
     def correct_offset(self, result: EpisodeResult) -> bool:
         """After a throw held in the target's orientation but at another

@@ -73,7 +73,10 @@ class Attempt:
 class LearningResult:
     object: str
     success: bool       # held in the target grasp on the last throw
-    stopped: str        # caught | exhausted | max_throws | no_catch_point
+    # caught | exhausted | max_throws | no_catch_point | same_miss (under a
+    # grasp target, learning_phase.MAX_SAME_MISSES throws in a row missed it
+    # for the same reason)
+    stopped: str
     throws: int         # every throw, the watching throw included
     sim_time_s: float   # simulated time of every throw, [s]
     wall_s: float       # wall time of the whole phase, [s]

@@ -204,6 +204,27 @@ def judge(target: Target, obj: ObjectSpec, start: Grasp,
     return Verdict(success, axis_error, offset_error, side_ok)
 
 
+MISS_REASONS = ("dropped", "wrong_way_round", "tilted", "off_offset")
+
+
+def miss_reason(held: bool, error: dict | None) -> str | None:
+    """Why a throw under a grasp target is not in it, from whether it held
+    the object and its `grasp_error` (Verdict.as_dict): "dropped" (not
+    held), "wrong_way_round" (the axis reversed from the target's, or the
+    side another), "tilted" (the axis more than AXIS_TOLERANCE_DEG from the
+    palm's y), "off_offset" (more than OFFSET_TOLERANCE_MM from the target's
+    offset); None when it is in the target grasp."""
+    if not held or not error or error.get("axis_error_deg") is None:
+        return "dropped" if not held else None
+    if error["axis_error_deg"] >= 90.0 or error.get("side_ok") is False:
+        return "wrong_way_round"
+    if error["axis_error_deg"] > AXIS_TOLERANCE_DEG:
+        return "tilted"
+    if abs(error["offset_error_mm"]) > OFFSET_TOLERANCE_MM:
+        return "off_offset"
+    return None
+
+
 def kind_of(obj: ObjectSpec, start: Grasp, achieved: Grasp) -> str | None:
     """Which of keep, flip and turn an achieved grasp is (its axis the way
     round and its side as the target's, whatever its tilt and offset; for

@@ -68,6 +68,7 @@ from pydrake.trajectories import PiecewisePolynomial
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.planning.time_law import ease_in, quintic, quintic_from
 from regrasp_drake.station.palm_toss import TossDesign, toss_trajectory
+from regrasp_drake.station.scenario import lowers_moving
 from regrasp_drake.station.throw import end_s, free_time_s, let_go_time_s
 from regrasp_drake.world.robot import HAND_JOINTS
 
@@ -234,7 +235,7 @@ class CatchStateMachine(LeafSystem):
         self._preshape_to_closed = _Ramp(self._preshape, self._closed,
                                          finger_speed_rad_per_s)
         self._cushion = scenario.catch.return_from_motion
-        self._lower_moving = scenario.catch.lower_ends_moving
+        self._lower_moving = lowers_moving(scenario)
         self._park_q = np.asarray(park_q, float)
         self._watching = self.DeclareNumericParameter(
             BasicVector([float(watching)]))

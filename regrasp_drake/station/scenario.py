@@ -287,8 +287,11 @@ class CatchConfig:
     # its mean speed (lower_speed_m_per_s) and goes on so until the return
     # takes over from that motion (needs return_from_motion): the palm
     # meets the falling object moving with it, and yields after, instead of
-    # waiting for it at rest (studies/landing).
-    lower_ends_moving: bool = False
+    # waiting for it at rest. None: true under a grasp target, false under
+    # "any" (the paper's catch, Table 1 as the paper ran it). First throw,
+    # Table 1 + held-out × six targets: 39 of 60 in the target grasp, 27 of
+    # 60 false (docs/regrasp.md, The landing).
+    lower_ends_moving: typing.Optional[bool] = None
     # Where (h_catch, h_down) come from: "fixed" (the two values below) or
     # "mlp" (the network in `weights`).
     parameter_source: str = "fixed"
@@ -441,6 +444,17 @@ def with_target(s: Scenario, target: Target) -> Scenario:
     if target.kind in ("keep", "turn"):
         out.throw.toss.spin_rad_per_s = 0.0
     return validate(out)
+
+
+def lowers_moving(scenario: "Scenario") -> bool:
+    """Whether the catch's lowering ends moving down (catch.lower_ends_moving;
+    None: under a grasp target, with the cushioned return it needs; not
+    under "any")."""
+    moving = scenario.catch.lower_ends_moving
+    if moving is None:
+        return (scenario.regrasp.target != "any"
+                and scenario.catch.return_from_motion)
+    return bool(moving)
 
 
 def load_scenario(path: str | Path | None = None, *, name: str | None = None,

@@ -199,7 +199,7 @@ def _check_catch(s) -> None:
               " m/s")
     _in_range("catch.palm_stop_level", k.palm_stop_level, 0, n.levels)
     _in_range("catch.return_s", k.return_s, 0.05, 3.0, " s")
-    if k.lower_ends_moving and not k.return_from_motion:
+    if k.lower_ends_moving is True and not k.return_from_motion:
         raise field_error("catch.lower_ends_moving", k.lower_ends_moving,
                           "false unless catch.return_from_motion is true (the "
                           "return takes over from the lowering's motion)")
