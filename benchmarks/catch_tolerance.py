@@ -101,7 +101,8 @@ def _run(args) -> int:
     from pydrake.math import RigidTransform
     from pydrake.systems.analysis import InitializeParams
 
-    from regrasp_drake.episode.run import read_ending
+    from regrasp_drake.episode.diagram import build_episode_diagram, initialize
+    from regrasp_drake.episode.result import read_ending
     from regrasp_drake.episode.simulate import (
         advance_to_outcome,
         hand_over,
@@ -110,7 +111,6 @@ def _run(args) -> int:
     )
     from regrasp_drake.planning.ik import ArmIk
     from regrasp_drake.station.scenario import scenario_digest
-    from regrasp_drake.station.station import build_episode_diagram, initialize
     args.out.mkdir(parents=True, exist_ok=True)
     ik = ArmIk()
     X_WG = watched_plan(base, obj, ik, args.out)

@@ -55,7 +55,7 @@ from regrasp_drake import atomic_io
 from regrasp_drake.errors import InputError
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.catch_state_machine import Phase
-from regrasp_drake.episode.run import run_episode
+from regrasp_drake.episode.episode import run_episode
 from regrasp_drake.episode.simulate import (
     THROWS,
     advance_to_outcome,
@@ -64,7 +64,7 @@ from regrasp_drake.episode.simulate import (
 )
 from regrasp_drake.station.scenario import catch_phase_scenario, load_scenario
 from regrasp_drake.station.scenario_checks import check_catch_parameters
-from regrasp_drake.station.station import (
+from regrasp_drake.episode.diagram import (
     build_episode_diagram,
     continue_with,
     hand_idle_until_handover,

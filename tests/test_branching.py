@@ -9,7 +9,8 @@ import numpy as np
 import torch
 
 from regrasp_drake.episode.branching import run_cells
-from regrasp_drake.episode.run import read_ending, run_episode
+from regrasp_drake.episode.episode import run_episode
+from regrasp_drake.episode.result import read_ending
 from regrasp_drake.episode.simulate import release_time
 from regrasp_drake.errors import InputError
 from regrasp_drake.grid import plan_object

@@ -9,7 +9,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from regrasp_drake.episode.run import run_episode
+from regrasp_drake.episode.episode import run_episode
 from regrasp_drake.episode.simulate import release_time
 from regrasp_drake.learning.flight_predictor import FlightPredictor
 from regrasp_drake.paths import MODELS_DIR

@@ -14,6 +14,12 @@ import numpy as np
 from pydrake.math import RigidTransform
 
 from regrasp_drake import memo
+from regrasp_drake.episode.diagram import (
+    EpisodeDiagram,
+    Loggers,
+    continue_with,
+    initialize,
+)
 from regrasp_drake.station import throw
 from regrasp_drake.station.catch_state_machine import ThrowPerturbation
 from regrasp_drake.station.grasp_monitor import GraspMonitor
@@ -22,12 +28,6 @@ from regrasp_drake.station.scenario import (
     catch_phase_scenario,
     hands_over,
     scenario_digest,
-)
-from regrasp_drake.station.station import (
-    EpisodeDiagram,
-    Loggers,
-    continue_with,
-    initialize,
 )
 
 
@@ -96,7 +96,7 @@ def hand_over(simulator, episode: EpisodeDiagram, scenario: Scenario,
     """Simulates `episode` to the release time and goes on from there with
     the diagram `rebuild(later)` builds for `later`, the scenario at the
     catch's plant step (scenario.catch_phase_scenario), state for state
-    (station.continue_with). Without a catch step of its own, or when the
+    (diagram.continue_with). Without a catch step of its own, or when the
     episode ends first, nothing is handed over. Drake handles the update
     events of a time at the start of the next step, so every event at the
     release time runs in the catch's diagram."""
@@ -151,7 +151,7 @@ class ThrowCache:
     the first episode of an object keeps its throw's simulator at the
     handover (`hand_over`'s `before`: it is only read from there on) and
     the diagram it went on in from there, and a later one goes on from that
-    state in that diagram (`station.continue_with`, which copies the
+    state in that diagram (`diagram.continue_with`, which copies the
     state), with its own grasp pose, parameters and whether it watches set
     (CatchController.set_task): the same episode bit for bit (tested),
     without the throw's 3 280 steps of 0.25 ms and without building a
