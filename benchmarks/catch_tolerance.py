@@ -102,13 +102,12 @@ def _run(args) -> int:
     from pydrake.systems.analysis import InitializeParams
 
     from regrasp_drake.episode.diagram import build_episode_diagram, initialize
-    from regrasp_drake.episode.result import read_ending
-    from regrasp_drake.episode.simulate import (
+    from regrasp_drake.episode.episode import (
         advance_to_outcome,
         hand_over,
-        read_outcome,
         release_time,
     )
+    from regrasp_drake.episode.result import read_ending, read_outcome
     from regrasp_drake.planning.ik import ArmIk
     from regrasp_drake.station.scenario import scenario_digest
     args.out.mkdir(parents=True, exist_ok=True)

@@ -55,12 +55,12 @@ from regrasp_drake import atomic_io
 from regrasp_drake.errors import InputError
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.catch_state_machine import Phase
-from regrasp_drake.episode.episode import run_episode
-from regrasp_drake.episode.simulate import (
+from regrasp_drake.episode.episode import (
     THROWS,
     advance_to_outcome,
     hand_over,
     release_time,
+    run_episode,
 )
 from regrasp_drake.station.scenario import catch_phase_scenario, load_scenario
 from regrasp_drake.station.scenario_checks import check_catch_parameters

@@ -17,10 +17,9 @@ from pydrake.geometry import Cylinder, Rgba, Sphere
 from pydrake.math import RigidTransform, RotationMatrix
 
 from regrasp_drake.episode.diagram import build_episode_diagram
-from regrasp_drake.episode.episode import run_episode
+from regrasp_drake.episode.episode import release_time, run_episode
 from regrasp_drake.episode.replay import draw_path, framing_view, save_html
 from regrasp_drake.episode.result import EpisodeResult, start_grasp
-from regrasp_drake.episode.simulate import release_time
 from regrasp_drake.errors import InputError
 from regrasp_drake.parameter_space import H_CATCH_RANGE
 from regrasp_drake.planning import grasp

@@ -12,8 +12,8 @@ from pydrake.math import RigidTransform
 
 from regrasp_drake import memo
 from regrasp_drake.episode import episode
-from regrasp_drake.episode.episode import run_episode
-from regrasp_drake.episode.simulate import THROWS, Logs, ThrowCache
+from regrasp_drake.episode.episode import THROWS, ThrowCache, run_episode
+from regrasp_drake.episode.result import Logs
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.scenario import ThrowNoise, load_scenario
 from regrasp_drake.throw_catch import plan_catch

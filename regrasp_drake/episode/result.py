@@ -1,16 +1,12 @@
 """What an episode came to (`EpisodeResult`), read at its end
-(`read_result`: the outcome, how it ended, the grasp against the target)."""
+(`read_result`: the outcome, how it ended, the grasp against the target),
+and the signals its loggers kept (`Logs`, `read_logs`)."""
 
 import dataclasses as dc
 
 import numpy as np
 
-from regrasp_drake.episode.diagram import EpisodeDiagram
-from regrasp_drake.episode.simulate import (
-    Logs,
-    monitor_state,
-    read_outcome,
-)
+from regrasp_drake.episode.diagram import EpisodeDiagram, Loggers
 from regrasp_drake.parameter_space import HELD_OUTCOMES
 from regrasp_drake.planning import grasp
 from regrasp_drake.station.grasp_monitor import (
@@ -24,6 +20,19 @@ from regrasp_drake.station.scenario import (
 )
 from regrasp_drake.station.start_pose import start_poses
 from regrasp_drake.world.objects import ObjectSpec
+
+
+@dc.dataclass
+class Logs:
+    """Signals sampled at the sensors' rate."""
+    t: np.ndarray           # [s]
+    object_state: np.ndarray  # (13, n): quaternion wxyz, p_WO, w_WO, v_WO
+    ir: np.ndarray          # (13, n) levels
+    bumper: np.ndarray      # (n,)
+    phase: np.ndarray       # (n,)
+    actuation: np.ndarray   # (16, n) net actuation, [N·m]
+    arm_state: np.ndarray   # (12, n)
+    params: np.ndarray      # (2, n) h_catch, h_down
 
 
 @dc.dataclass
@@ -206,6 +215,34 @@ def read_ending(episode: EpisodeDiagram, context, outcome: str) -> dict:
 
 _CONTACT_FIELDS = ("touching", "held_by_contact", "slip_m_per_s",
                    "spin_rad_per_s")
+
+
+def read_outcome(episode: EpisodeDiagram, context,
+                 message: str) -> tuple[str, float | None]:
+    """The episode's outcome name and the time the grasp was recognized."""
+    state = monitor_state(episode, context)
+    outcome = "failed" if message else GraspMonitor.outcome(
+        state).name.lower()
+    grasp_t = GraspMonitor.grasp_time(state)
+    return outcome, (grasp_t if grasp_t >= 0 else None)
+
+
+def monitor_state(episode: EpisodeDiagram, context) -> np.ndarray:
+    """The grasp monitor's state in the diagram's context `context`."""
+    monitor = episode.controller.monitor
+    return monitor.GetOutputPort("monitor_state").Eval(
+        monitor.GetMyContextFromRoot(context))
+
+
+def read_logs(loggers: Loggers, context) -> Logs:
+    """The signals the loggers kept in the diagram's context `context`."""
+    def log(sink):
+        return sink.FindLog(context).data().copy()
+    times = loggers.object.FindLog(context).sample_times().copy()
+    return Logs(t=times, object_state=log(loggers.object),
+                ir=log(loggers.ir), bumper=log(loggers.bumper)[0],
+                phase=log(loggers.phase)[0], actuation=log(loggers.actuation),
+                arm_state=log(loggers.arm), params=log(loggers.params))
 
 
 __all__ = ["EpisodeResult", "Logs", "Outcome", "read_result"]
