@@ -119,11 +119,12 @@ def _run(args) -> int:
                                                       args.h_down))
     sim = initialize(station, scenario)
     # To the release time, at the catch's step from there (as run_episode).
-    sim, station, scenario = hand_over(
+    handed = hand_over(
         sim, station, scenario,
         lambda later: build_episode_diagram(
             later, obj, ik=ik, X_WG=X_WG,
-            catch_parameters=(args.h_catch, args.h_down))).now
+            catch_parameters=(args.h_catch, args.h_down)))
+    sim, station, scenario = handed.simulator, handed.diagram, handed.scenario
     if sim.get_context().get_time() < release_time(scenario):
         sim.AdvanceTo(release_time(scenario))
     saved = sim.get_context().Clone()

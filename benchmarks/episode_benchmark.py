@@ -266,10 +266,12 @@ def episode_from_wall_s(scenario, obj, ik, X_WG, params, t_start,
     episode = build_episode_diagram(scenario, obj, ik=ik, X_WG=X_WG,
                                     catch_parameters=params)
     simulator = initialize(episode, scenario)
-    simulator, episode, scenario = hand_over(
+    handed = hand_over(
         simulator, episode, scenario,
         lambda later: build_episode_diagram(later, obj, ik=ik, X_WG=X_WG,
-                                            catch_parameters=params)).now
+                                            catch_parameters=params))
+    simulator, episode, scenario = (handed.simulator, handed.diagram,
+                                    handed.scenario)
     simulator.AdvanceTo(t_start)
     if timer is not None:
         timer.reset()

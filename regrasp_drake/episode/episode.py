@@ -22,6 +22,7 @@ import time
 
 import numpy as np
 from pydrake.math import RigidTransform
+from pydrake.systems.analysis import Simulator
 
 from regrasp_drake import memo
 from regrasp_drake.episode.diagram import (
@@ -65,15 +66,17 @@ def release_time(scenario: Scenario) -> float:
 class Handover:
     """An episode handed over, at the release time, from the throw's plant
     step to the catch's (scenario.catch_time_step_s; see `hand_over`)."""
-    # (simulator, episode, scenario) to go on with: the catch's, or the
-    # throw's when there was no handover.
-    now: tuple
-    # The throw's (simulator, episode) when handed over, for its logs.
-    before: tuple | None
+    # What the episode goes on with: the catch's simulator, diagram and
+    # scenario, or the throw's when there was no handover.
+    simulator: Simulator
+    diagram: EpisodeDiagram
+    scenario: Scenario
+    # The throw's (simulator, diagram) when handed over, for its logs.
+    before: tuple[Simulator, EpisodeDiagram] | None = None
     # A failure's message, if the episode failed before the release time.
-    message: str
+    message: str = ""
     # False when the episode ended before the release time.
-    running: bool
+    running: bool = True
     # The catch parameters of this episode when its throw was simulated
     # for another (ThrowCache): its logs show this episode's from the start.
     parameters: tuple | None = None
@@ -108,17 +111,18 @@ def hand_over(simulator, episode: EpisodeDiagram, scenario: Scenario,
     release time runs in the catch's diagram."""
     later = catch_phase_scenario(scenario)
     if later is None:
-        return Handover((simulator, episode, scenario), None, "", True)
+        return Handover(simulator, episode, scenario)
     t = release_time(scenario)
     message = advance_to_outcome(simulator, episode, scenario, t)
     context = simulator.get_context()
     if (message or context.get_time() < t
             or read_outcome(episode, context, "")[0] != "running"):
-        return Handover((simulator, episode, scenario), None, message, False)
+        return Handover(simulator, episode, scenario, message=message,
+                        running=False)
     other = rebuild(later)
     simulator_later = continue_with(simulator, episode, other, later)
-    return Handover((simulator_later, other, later), (simulator, episode),
-                    "", True)
+    return Handover(simulator_later, other, later,
+                    before=(simulator, episode))
 
 
 def advance_to_outcome(simulator, episode: EpisodeDiagram, scenario,
@@ -188,8 +192,8 @@ class ThrowCache:
         if key is None or not handover.running or handover.before is None:
             return
         self._kept.pop(key, None)
-        self._kept[key] = (*handover.before, handover.now[2])
-        self._diagrams[key] = (ik, handover.now[1])
+        self._kept[key] = (*handover.before, handover.scenario)
+        self._diagrams[key] = (ik, handover.diagram)
         while len(self._kept) > self.size:
             del self._kept[next(iter(self._kept))]
         self._diagrams = {k: v for k, v in self._diagrams.items()
@@ -215,8 +219,8 @@ class ThrowCache:
             X_WG=X_WG if X_WG is not None else RigidTransform(),
             catch_parameters=catch_parameters, watching=X_WG is None)
         self.hits += 1
-        return Handover((target, other, later), (simulator, episode), "",
-                        True, tuple(float(p) for p in catch_parameters))
+        return Handover(target, other, later, before=(simulator, episode),
+                        parameters=tuple(float(p) for p in catch_parameters))
 
     def clear(self) -> None:
         self._kept.clear()
@@ -305,7 +309,9 @@ class Episode:
         else:
             self.build_s = time.perf_counter() - t0
         self.handover = handover
-        self.simulator, self.diagram, self.scenario = handover.now
+        self.simulator = handover.simulator
+        self.diagram = handover.diagram
+        self.scenario = handover.scenario
         self.message = handover.message
 
     @property
