@@ -101,32 +101,27 @@ def _run(args) -> int:
     from pydrake.math import RigidTransform
     from pydrake.systems.analysis import InitializeParams
 
-    from regrasp_drake.episode.run import read_ending
-    from regrasp_drake.episode.simulate import (
+    from regrasp_drake.episode.episode import (
+        Episode,
+        ThrowCache,
         advance_to_outcome,
-        hand_over,
-        read_outcome,
-        release_time,
     )
+    from regrasp_drake.episode.result import read_ending, read_outcome
     from regrasp_drake.planning.ik import ArmIk
     from regrasp_drake.station.scenario import scenario_digest
-    from regrasp_drake.station.station import build_episode_diagram, initialize
     args.out.mkdir(parents=True, exist_ok=True)
     ik = ArmIk()
     X_WG = watched_plan(base, obj, ik, args.out)
     t0 = time.time()
-    station = build_episode_diagram(scenario, obj, ik=ik, X_WG=X_WG,
-                                    catch_parameters=(args.h_catch,
-                                                      args.h_down))
-    sim = initialize(station, scenario)
-    # To the release time, at the catch's step from there (as run_episode).
-    sim, station, scenario = hand_over(
-        sim, station, scenario,
-        lambda later: build_episode_diagram(
-            later, obj, ik=ik, X_WG=X_WG,
-            catch_parameters=(args.h_catch, args.h_down))).now
-    if sim.get_context().get_time() < release_time(scenario):
-        sim.AdvanceTo(release_time(scenario))
+    # To the release time, at the catch's step from there (a throw of its
+    # own: no kept one).
+    episode = Episode(scenario, obj, ik=ik, X_WG=X_WG,
+                      catch_parameters=(args.h_catch, args.h_down),
+                      throws=ThrowCache(size=0))
+    episode.start()
+    episode.advance_to_release()
+    sim, station, scenario = (episode.simulator, episode.diagram,
+                              episode.scenario)
     saved = sim.get_context().Clone()
     rows = []
     name = f"{args.object}_{args.h_catch:g}_{args.h_down:g}"

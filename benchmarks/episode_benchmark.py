@@ -55,16 +55,16 @@ from regrasp_drake import atomic_io
 from regrasp_drake.errors import InputError
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.catch_state_machine import Phase
-from regrasp_drake.episode.run import run_episode
-from regrasp_drake.episode.simulate import (
+from regrasp_drake.episode.episode import (
     THROWS,
     advance_to_outcome,
     hand_over,
     release_time,
+    run_episode,
 )
 from regrasp_drake.station.scenario import catch_phase_scenario, load_scenario
 from regrasp_drake.station.scenario_checks import check_catch_parameters
-from regrasp_drake.station.station import (
+from regrasp_drake.episode.diagram import (
     build_episode_diagram,
     continue_with,
     hand_idle_until_handover,
@@ -266,10 +266,12 @@ def episode_from_wall_s(scenario, obj, ik, X_WG, params, t_start,
     episode = build_episode_diagram(scenario, obj, ik=ik, X_WG=X_WG,
                                     catch_parameters=params)
     simulator = initialize(episode, scenario)
-    simulator, episode, scenario = hand_over(
+    handed = hand_over(
         simulator, episode, scenario,
         lambda later: build_episode_diagram(later, obj, ik=ik, X_WG=X_WG,
-                                            catch_parameters=params)).now
+                                            catch_parameters=params))
+    simulator, episode, scenario = (handed.simulator, handed.diagram,
+                                    handed.scenario)
     simulator.AdvanceTo(t_start)
     if timer is not None:
         timer.reset()

@@ -119,7 +119,7 @@ def _trial(task):
     mode, name, level, trial, library, base, flight_model = task
     import torch
 
-    from regrasp_drake.episode.run import run_episode
+    from regrasp_drake.episode.episode import run_episode
     from regrasp_drake.errors import InputError
     from regrasp_drake.learning.flight_predictor import FlightPredictor
     from regrasp_drake.learning.library import lookup

@@ -41,7 +41,7 @@ from tqdm import tqdm
 from regrasp_drake import atomic_io
 from regrasp_drake.episode.branching import run_cells
 from regrasp_drake.errors import InputError
-from regrasp_drake.episode.simulate import THROWS
+from regrasp_drake.episode.episode import THROWS
 from regrasp_drake.parameter_space import cell_parameters, cells
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.scenario import load_scenario

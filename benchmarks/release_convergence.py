@@ -49,7 +49,7 @@ from regrasp_drake.convergence import release_differences
 from regrasp_drake.errors import InputError, check_output_path
 from regrasp_drake.grid import append_rows, read_rows
 from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.episode.simulate import release_time
+from regrasp_drake.episode.episode import release_time
 from regrasp_drake.station.scenario import with_time_step
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world.objects import load_catalogue

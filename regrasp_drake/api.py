@@ -24,7 +24,7 @@ from pathlib import Path
 
 import torch
 
-from regrasp_drake.episode.run import EpisodeResult
+from regrasp_drake.episode.result import EpisodeResult
 from regrasp_drake.errors import InputError, field_error
 from regrasp_drake.learning.flight_predictor import FlightPredictor
 from regrasp_drake.learning.learning_phase import apply_learned

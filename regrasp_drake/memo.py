@@ -3,7 +3,7 @@
 Every cache of the package is one of these, named, and listed by `caches()`
 (`clear_all()` empties them): the start and rest poses of a scenario and an
 object (station/start_pose.py) are pure functions of their inputs, so a kept
-result is the result; episode.simulate.ThrowCache keeps simulated throws the same
+result is the result; episode.episode.ThrowCache keeps simulated throws the same
 way and registers itself here too, and `lru_cache` lists a functools cache
 (the toss's trajectories, the arm's joint limits).
 """

@@ -16,9 +16,10 @@ from pydrake.common.eigen_geometry import Quaternion
 from pydrake.geometry import Cylinder, Rgba, Sphere
 from pydrake.math import RigidTransform, RotationMatrix
 
+from regrasp_drake.episode.diagram import build_episode_diagram
+from regrasp_drake.episode.episode import release_time, run_episode
 from regrasp_drake.episode.replay import draw_path, framing_view, save_html
-from regrasp_drake.episode.run import EpisodeResult, run_episode, start_grasp
-from regrasp_drake.episode.simulate import release_time
+from regrasp_drake.episode.result import EpisodeResult, start_grasp
 from regrasp_drake.errors import InputError
 from regrasp_drake.parameter_space import H_CATCH_RANGE
 from regrasp_drake.planning import grasp
@@ -37,7 +38,6 @@ from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
 from regrasp_drake.station.catch_state_machine import Phase, lowered_pose
 from regrasp_drake.station.scenario import Scenario, target_of
-from regrasp_drake.station.station import build_episode_diagram
 from regrasp_drake.world.objects import ObjectSpec
 
 

@@ -9,8 +9,8 @@ import numpy as np
 import torch
 
 from regrasp_drake.episode.branching import run_cells
-from regrasp_drake.episode.run import read_ending, run_episode
-from regrasp_drake.episode.simulate import release_time
+from regrasp_drake.episode.episode import release_time, run_episode
+from regrasp_drake.episode.result import read_ending
 from regrasp_drake.errors import InputError
 from regrasp_drake.grid import plan_object
 from regrasp_drake.planning.ik import ArmIk
@@ -65,7 +65,7 @@ class RunCellsTest(Row2Fixture, unittest.TestCase):
         plain = run_episode(self.scenario, self.obj, ik=self.ik,
                             X_WG=self.plan.X_WG, catch_parameters=parameters)
         same = copy.deepcopy(self.scenario)
-        with mock.patch("regrasp_drake.episode.simulate.catch_phase_scenario",
+        with mock.patch("regrasp_drake.episode.episode.catch_phase_scenario",
                         return_value=same):
             handed = run_episode(self.scenario, self.obj, ik=self.ik,
                                  X_WG=self.plan.X_WG,

@@ -10,11 +10,11 @@ from pathlib import Path
 import numpy as np
 from pydrake.systems.framework import EventStatus
 
+from regrasp_drake.episode.diagram import build_episode_diagram, initialize
 from regrasp_drake.errors import InputError
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.palm_toss import TossDesign
 from regrasp_drake.station.scenario import Scenario, load_scenario
-from regrasp_drake.station.station import build_episode_diagram, initialize
 from regrasp_drake.world import robot
 from regrasp_drake.world.objects import load_catalogue
 from tests.refusals import RefusalAssertions, load_script

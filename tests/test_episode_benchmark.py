@@ -5,8 +5,7 @@ it)."""
 import dataclasses as dc
 import unittest
 
-from regrasp_drake.episode.run import run_episode
-from regrasp_drake.episode.simulate import release_time
+from regrasp_drake.episode.episode import release_time, run_episode
 from regrasp_drake.grid import plan_object
 from regrasp_drake.station.scenario import load_scenario
 from tests.fixtures import Row2Fixture

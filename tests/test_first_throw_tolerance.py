@@ -27,7 +27,7 @@ import unittest
 
 import torch
 
-from regrasp_drake.episode.simulate import release_time
+from regrasp_drake.episode.episode import release_time
 from regrasp_drake.learning.flight_predictor import FlightPredictor
 from regrasp_drake.learning.library import load_library
 from regrasp_drake.learning.table1 import catch_point_check

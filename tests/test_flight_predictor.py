@@ -9,8 +9,7 @@ import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RollPitchYaw, RotationMatrix
 
-from regrasp_drake.episode.run import run_episode
-from regrasp_drake.episode.simulate import release_time
+from regrasp_drake.episode.episode import release_time, run_episode
 from regrasp_drake.errors import InputError
 from regrasp_drake.learning.flight_predictor import (
     FlightPredictor,

@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
-from regrasp_drake.episode.run import read_grasp, start_grasp
+from regrasp_drake.episode.diagram import build_episode_diagram, initialize
+from regrasp_drake.episode.result import read_grasp, start_grasp
 from regrasp_drake.errors import InputError
 from regrasp_drake.learning.dataset import generate
 from regrasp_drake.learning.flight_predictor import FlightPredictor
@@ -25,7 +26,6 @@ from regrasp_drake.station.scenario import (
     scenario_yaml,
     with_target,
 )
-from regrasp_drake.station.station import build_episode_diagram, initialize
 from regrasp_drake.throw_catch import planned_grasp
 from regrasp_drake.world.objects import resolve_object
 

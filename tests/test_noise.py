@@ -6,7 +6,7 @@ import unittest
 
 import numpy as np
 
-from regrasp_drake.episode.run import run_episode
+from regrasp_drake.episode.episode import run_episode
 from regrasp_drake.errors import InputError
 from regrasp_drake.station.catch_state_machine import ThrowPerturbation
 from regrasp_drake.station.scenario import ThrowNoise, validate

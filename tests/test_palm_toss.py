@@ -5,6 +5,7 @@ import unittest
 
 import numpy as np
 
+from regrasp_drake.episode.diagram import build_episode_diagram, initialize
 from regrasp_drake.errors import InputError
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
@@ -20,7 +21,6 @@ from regrasp_drake.station.scenario import (
     validate,
     with_time_step,
 )
-from regrasp_drake.station.station import build_episode_diagram, initialize
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world.objects import load_catalogue
 

@@ -9,8 +9,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from regrasp_drake.episode.run import run_episode
-from regrasp_drake.episode.simulate import release_time
+from regrasp_drake.episode.episode import release_time, run_episode
 from regrasp_drake.learning.flight_predictor import FlightPredictor
 from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning.free_flight import flight_from_release

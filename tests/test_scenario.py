@@ -10,6 +10,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import DiscreteContactApproximation
 
+from regrasp_drake.episode.diagram import build_episode_diagram, initialize
 from regrasp_drake.errors import InputError
 from regrasp_drake.input_files import parse_yaml
 from regrasp_drake.planning.ik import ArmIk
@@ -20,7 +21,6 @@ from regrasp_drake.station.scenario import (
     scenario_yaml,
 )
 from regrasp_drake.station.scenario_checks import check_catch_parameters
-from regrasp_drake.station.station import build_episode_diagram, initialize
 from regrasp_drake.world.objects import load_catalogue
 
 TEST_SCENARIOS = Path(__file__).parent / "scenarios.yaml"

@@ -19,22 +19,19 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.controllers import InverseDynamicsController
 from pydrake.systems.framework import DiagramBuilder
 
+from regrasp_drake.episode.diagram import build_episode_diagram
+from regrasp_drake.episode.episode import run_episode
 from regrasp_drake.episode.replay import (
     CHROMIUM,
     make_meshcat,
     render_html_to_png,
     save_html,
 )
-from regrasp_drake.episode.run import run_episode
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
 from regrasp_drake.station.catch_state_machine import Phase
 from regrasp_drake.station.scenario import load_scenario
-from regrasp_drake.station.station import (
-    add_station,
-    build_episode_diagram,
-    make_arm_controller,
-)
+from regrasp_drake.station.station import add_station, make_arm_controller
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world import robot
 from regrasp_drake.world.objects import load_catalogue

@@ -11,9 +11,9 @@ import torch
 from pydrake.math import RigidTransform
 
 from regrasp_drake import memo
-from regrasp_drake.episode import run
-from regrasp_drake.episode.run import run_episode
-from regrasp_drake.episode.simulate import THROWS, Logs, ThrowCache
+from regrasp_drake.episode import episode
+from regrasp_drake.episode.episode import THROWS, ThrowCache, run_episode
+from regrasp_drake.episode.result import Logs
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.scenario import ThrowNoise, load_scenario
 from regrasp_drake.throw_catch import plan_catch
@@ -51,8 +51,8 @@ class ThrowCacheTest(unittest.TestCase):
         fresh = self.episodes()
         THROWS.enabled = True
         hits = THROWS.hits
-        with mock.patch.object(run, "build_episode_diagram",
-                               wraps=run.build_episode_diagram) as build:
+        with mock.patch.object(episode, "build_episode_diagram",
+                               wraps=episode.build_episode_diagram) as build:
             reused = self.episodes()
         self.assertEqual(THROWS.hits - hits, 2)  # both catches
         # Two diagrams built, the watch's (the throw's step, then the

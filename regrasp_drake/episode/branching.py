@@ -29,16 +29,10 @@ import time
 
 import numpy as np
 
-from regrasp_drake.episode.run import EpisodeResult, read_result, start_grasp
-from regrasp_drake.episode.simulate import (
-    THROWS,
-    advance_to_outcome,
-    read_outcome,
-    start_episode,
-)
+from regrasp_drake.episode.episode import Episode
+from regrasp_drake.episode.result import EpisodeResult, read_result
 from regrasp_drake.errors import check_interrupt
 from regrasp_drake.station.catch_state_machine import Phase
-from regrasp_drake.station.station import build_episode_diagram
 
 
 def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
@@ -55,11 +49,9 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
     `run_episode`'s; `throws` as run_episode's (default: THROWS).
     """
     t0 = time.perf_counter()
-    start = start_grasp(scenario, obj)
     parameters = [(float(h), float(d)) for h, d in parameters]
-    simulator, episode, scenario = _shared_run(scenario, obj, ik, X_WG,
-                                               throws)
-    t_final = scenario.monitor.max_time_s + 1.0
+    shared = _shared_run(scenario, obj, ik, X_WG, throws)
+    t_final = shared.scenario.monitor.max_time_s + 1.0
     rows = [None] * len(parameters)
 
     def report(indices, result):
@@ -80,24 +72,19 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
         outcome; it is the outcome of every cell in the group (see
         `_run_to_triggers`)."""
         children.start(group, lambda: _run_child(
-            simulator, episode, scenario, obj, start,
-            parameters[group[0]], t_final))
+            shared, parameters[group[0]], t_final))
 
     children = _Children(workers, report, died)
     try:
-        message, waiting = _run_to_triggers(simulator, episode, scenario,
-                                            parameters, t_final, fork)
+        message, waiting = _run_to_triggers(shared, parameters, t_final,
+                                            fork)
         # Cells that never triggered share the parent's history to its end.
         never = [i for i, (h, _) in enumerate(parameters) if h in waiting]
         if never:
-            context = simulator.get_context()
-            if (not message
-                    and read_outcome(episode, context, "")[0] == "running"):
-                message = advance_to_outcome(simulator, episode, scenario,
-                                             t_final)
-            report(never, read_result(
-                episode, context, scenario, obj, start, message=message,
-                h_catch=None, h_down=None, wall_s=time.perf_counter() - t0))
+            if not message and shared.outcome() == "running":
+                message = shared.advance_to_outcome(t_final)
+            report(never, _read_cell(shared, message, None,
+                                     time.perf_counter() - t0))
         children.finish_all()
     except BaseException:
         children.kill_all()  # interrupted (Ctrl-C) or failed
@@ -105,53 +92,49 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
     return rows
 
 
-def _shared_run(scenario, obj, ik, X_WG, throws):
-    """(simulator, episode, scenario) of the run the cells share, at the
-    release time when handed over there (or at the start): the throw
+def _shared_run(scenario, obj, ik, X_WG, throws) -> Episode:
+    """The episode the cells share, at the release time when handed over
+    there (or at the start): the throw
     simulated before by the watching throw the plan came from
     (episode.ThrowCache), or simulated here and kept; its parameters
     (0, 0) never trigger."""
-    def build(s):
-        return build_episode_diagram(s, obj, ik=ik, X_WG=X_WG,
-                                     catch_parameters=(0.0, 0.0))
-
-    handover, _ = start_episode(
-        scenario, obj, build, ik=ik, X_WG=X_WG, catch_parameters=(0.0, 0.0),
-        throws=THROWS if throws is None else throws)
-    simulator, episode, scenario = handover.now
-    if handover.before is not None:
+    shared = Episode(scenario, obj, ik=ik, X_WG=X_WG,
+                     catch_parameters=(0.0, 0.0), throws=throws)
+    shared.start()
+    simulator, episode = shared.simulator, shared.diagram
+    if shared.handover.before is not None:
         machine = episode.controller.state_machine
         phase = machine.GetOutputPort("phase").Eval(
             machine.GetMyContextFromRoot(simulator.get_context()))[0]
         if phase >= Phase.WAIT:
             raise ValueError("the hand already waits at the release time "
                              "(a cell may have triggered)")
-    return simulator, episode, scenario
+    return shared
 
 
-def _run_to_triggers(simulator, episode, scenario, parameters, t_final,
+def _run_to_triggers(shared: Episode, parameters, t_final,
                      fork) -> tuple[str, list]:
     """Advances the shared run sample by sample until every row of h_catch
     has triggered (or the run ends), calling fork(indices) for the cells
     that part from it at each sample, before the state machine's update at
     that time runs. Returns the run's failure message ("" if none) and the
     h_catch values that never triggered."""
-    ir_levels = episode.station.GetOutputPort("ir_levels")
-    machine = episode.controller.state_machine
-    context = simulator.get_context()
+    ir_levels = shared.diagram.station.GetOutputPort("ir_levels")
+    machine = shared.diagram.controller.state_machine
+    context = shared.simulator.get_context()
     ir_context = ir_levels.get_system().GetMyContextFromRoot(context)
     machine_context = machine.GetMyContextFromRoot(context)
-    sensors = scenario.sensors
+    sensors = shared.scenario.sensors
     waiting = sorted({h for h, _ in parameters}, reverse=True)
     message = ""
     k = round(context.get_time() / sensors.period_s)  # 0, or the release's
     while waiting:
         check_interrupt()
         k += 1
-        message = advance_to_outcome(simulator, episode, scenario,
-                                     min(k * sensors.period_s, t_final))
-        done = read_outcome(episode, context, message)[0] != "running"
-        if message or done or context.get_time() >= t_final:
+        message = shared.advance_to_outcome(min(k * sensors.period_s,
+                                                t_final))
+        if (message or shared.outcome() != "running"
+                or context.get_time() >= t_final):
             break
         if machine.GetOutputPort("phase").Eval(machine_context)[0] != Phase.WAIT:
             continue
@@ -235,15 +218,23 @@ class _Children:
         self._running.clear()
 
 
-def _run_child(simulator, episode, scenario, obj, start, cell_parameters,
-               t_final) -> EpisodeResult:
-    """In a forked child: the cell's parameters set, its episode run on
-    from the parent's state to its outcome."""
+def _run_child(shared: Episode, cell_parameters, t_final) -> EpisodeResult:
+    """In a forked child: the cell's parameters set, the shared episode run
+    on from the parent's state to its outcome."""
     t0 = time.perf_counter()
-    context = simulator.get_mutable_context()
-    episode.controller.set_task(context, catch_parameters=cell_parameters)
-    message = advance_to_outcome(simulator, episode, scenario, t_final)
-    h_catch, h_down = cell_parameters
-    return read_result(episode, context, scenario, obj, start,
+    shared.set_task(catch_parameters=cell_parameters)
+    message = shared.advance_to_outcome(t_final)
+    return _read_cell(shared, message, cell_parameters,
+                      time.perf_counter() - t0)
+
+
+def _read_cell(shared: Episode, message: str, cell_parameters,
+               wall_s: float) -> EpisodeResult:
+    """A cell's result, without logs, from the shared episode at its end
+    (result.read_result); h_catch and h_down are the cell's (None: set by
+    the caller)."""
+    h_catch, h_down = cell_parameters or (None, None)
+    return read_result(shared.diagram, shared.simulator.get_context(),
+                       shared.scenario, shared.obj, shared.start_grasp,
                        message=message, h_catch=h_catch, h_down=h_down,
-                       wall_s=time.perf_counter() - t0)
+                       wall_s=wall_s)

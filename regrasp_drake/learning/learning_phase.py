@@ -73,8 +73,8 @@ import torch
 from pydrake.math import RigidTransform
 
 from regrasp_drake import __version__
-from regrasp_drake.episode.run import EpisodeResult, run_episode, start_grasp
-from regrasp_drake.episode.simulate import release_time
+from regrasp_drake.episode.episode import release_time, run_episode
+from regrasp_drake.episode.result import EpisodeResult, start_grasp
 from regrasp_drake.errors import InputError, field_error
 from regrasp_drake.grid import ending
 from regrasp_drake.learning import library as lib

@@ -4,7 +4,7 @@ reachable catch point (`NoCatchPoint`)."""
 
 import dataclasses as dc
 
-from regrasp_drake.episode.run import EpisodeResult
+from regrasp_drake.episode.result import EpisodeResult
 from regrasp_drake.errors import InputError
 from regrasp_drake.learning import library as lib
 from regrasp_drake.learning.observation import episode_dict, plan_dict

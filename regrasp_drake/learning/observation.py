@@ -4,7 +4,7 @@ and the plan; and how episodes and plans are reported in JSON."""
 
 import dataclasses as dc
 
-from regrasp_drake.episode.run import EpisodeResult
+from regrasp_drake.episode.result import EpisodeResult
 from regrasp_drake.errors import InputError
 from regrasp_drake.parameter_space import H_DOWN_VALUES
 from regrasp_drake.planning.catch_plan import CatchPoint

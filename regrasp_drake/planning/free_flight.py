@@ -116,7 +116,7 @@ def flight_from_release(state, t0, obj, scenario):
 @dc.dataclass(frozen=True)
 class FlightLogs:
     """A flight's object states at its sample times, as an episode logs
-    them (episode.simulate.Logs' fields of the object)."""
+    them (episode.result.Logs' fields of the object)."""
     t: np.ndarray             # (n,) [s]
     object_state: np.ndarray  # (13, n): quaternion wxyz, p_WO, w_WO, v_WO
 

@@ -8,13 +8,8 @@ which Drake's in-plant PD does not support, the same PD outside it, see
 add_finger_servos); the infrared sensors and the tactile bumper.
 `add_catch_controller`: the catch state machine, the source of the catch
 parameters (fixed, or the MLP) and the grasp monitor, outside the station.
-`build_episode_diagram`: one episode's diagram, the two wired top to bottom
-with the loggers and Meshcat.
-
-Over 500 lines because it is the Diagram's builder: the station, the
-arm's controller and the finger servos, the catch controller, the loggers
-and the hand-over between plants; the physics is in plant.py, the start
-pose in start_pose.py.
+The hardware only: one episode's diagram, which wires the two with the
+loggers and Meshcat, and its simulator are episode/diagram.py's.
 """
 
 import dataclasses as dc
@@ -22,9 +17,6 @@ import dataclasses as dc
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.geometry import (
-    Meshcat,
-    MeshcatVisualizer,
-    MeshcatVisualizerParams,
     SceneGraph,
 )
 from pydrake.math import RigidTransform
@@ -35,11 +27,6 @@ from pydrake.multibody.tree import (
     ModelInstanceIndex,
     PdControllerGains,
     RigidBody,
-)
-from pydrake.systems.analysis import (
-    ApplySimulatorConfig,
-    InitializeParams,
-    Simulator,
 )
 from pydrake.systems.controllers import (
     InverseDynamics,
@@ -56,10 +43,8 @@ from pydrake.systems.framework import (
 from pydrake.systems.primitives import (
     Adder,
     ConstantVectorSource,
-    LogVectorOutput,
     MatrixGain,
     Multiplexer,
-    VectorLogSink,
 )
 
 from regrasp_drake.paths import MODELS_DIR
@@ -72,7 +57,7 @@ from regrasp_drake.station.catch_state_machine import (
 from regrasp_drake.station.grasp_monitor import GraspMonitor
 from regrasp_drake.station.mlp_system import MlpSystem, load_weights
 from regrasp_drake.station.plant import add_world, bumper_geometry
-from regrasp_drake.station.scenario import Scenario, hands_over
+from regrasp_drake.station.scenario import Scenario
 from regrasp_drake.station.sensors import InfraredSensors, TactileBumper
 from regrasp_drake.station.start_pose import initial_object_pose
 from regrasp_drake.world import robot
@@ -84,7 +69,7 @@ class GraspPoseSource(LeafSystem):
     """Outputs the palm's grasp pose X_WG, kept as an abstract parameter so
     that it can be set in a running simulation's context (`set_pose`): a
     catch planned when the object is seen leaving the hand
-    (`episode.run.run_episode`'s `at_release`)."""
+    (`episode.episode.run_episode`'s `at_release`)."""
 
     def __init__(self, X_WG: RigidTransform):
         LeafSystem.__init__(self)
@@ -173,28 +158,6 @@ class CatchController:
                 source.GetMyMutableContextFromRoot(root_context)
             ).SetFromVector(list(catch_parameters))
 
-
-@dc.dataclass
-class Loggers:
-    """Signals logged at the sensors' rate."""
-    object: VectorLogSink      # the object's state (13)
-    ir: VectorLogSink          # the infrared levels (13)
-    bumper: VectorLogSink      # (1)
-    phase: VectorLogSink       # the state machine's phase (1)
-    actuation: VectorLogSink   # the plant's net actuation (16), [N·m]
-    arm: VectorLogSink         # the arm's state (12)
-    params: VectorLogSink      # (h_catch, h_down), [m]
-
-
-@dc.dataclass
-class EpisodeDiagram:
-    """One episode's diagram: the station, the catch controller wired to
-    its ports, the loggers and Meshcat."""
-    diagram: Diagram
-    station: Station
-    controller: CatchController
-    loggers: Loggers
-    meshcat: Meshcat | None
 
 
 def add_station(builder: DiagramBuilder, scenario: Scenario,
@@ -395,66 +358,6 @@ def add_catch_controller(builder: DiagramBuilder, station: Station,
                            grasp_pose=grasp, parameters=params)
 
 
-def fixed_catch_parameters(scenario: Scenario, X_WG: RigidTransform | None,
-                           catch_parameters=None):
-    """The (h_catch, h_down) an episode's diagram holds fixed, [m]: those
-    given; else, on a watching throw or when the scenario's
-    catch.parameter_source is "fixed", the scenario's catch.h_catch_m and
-    h_down_m; else None (the MLP system predicts them)."""
-    if catch_parameters is None and (
-            X_WG is None or scenario.catch.parameter_source == "fixed"):
-        return (scenario.catch.h_catch_m, scenario.catch.h_down_m)
-    return catch_parameters
-
-
-def build_episode_diagram(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
-                          X_WG: RigidTransform | None, catch_parameters=None,
-                          mlp_features=None, meshcat: Meshcat | None = None,
-                          throw_number: int = 1) -> EpisodeDiagram:
-    """One episode's diagram: the station, the catch controller wired to
-    its ports, the loggers, Meshcat when asked.
-
-    X_WG: the palm's grasp pose; None makes a watching throw (no catch).
-    catch_parameters: (h_catch, h_down) in m, or None to take them as the
-    scenario's `catch.parameter_source` says: its fixed values, or the MLP
-    system fed with `mlp_features` (v_catch, h_cm, r_cm, d_obj, v_conv).
-    throw_number: which throw of a run this is; it seeds the release noise
-    when the scenario has any (throw.noise).
-    """
-    catch_parameters = fixed_catch_parameters(scenario, X_WG, catch_parameters)
-    if robot.directives_yaml(ik.directives) != robot.directives_yaml(
-            scenario.directives):
-        raise ValueError("build_episode_diagram: the ArmIk was built for "
-                         "other directives than the scenario's; expected "
-                         "ArmIk(scenario.directives)")
-    builder = DiagramBuilder()
-    # The station: plant, arm controller, finger servos, sensors.
-    station = add_station(builder, scenario, obj)
-    # The catch controller, wired to the station's ports.
-    controller = add_catch_controller(
-        builder, station, scenario, obj, ik=ik, X_WG=X_WG,
-        catch_parameters=catch_parameters, mlp_features=mlp_features,
-        throw_number=throw_number)
-
-    # Loggers, sampled at the sensors' rate.
-    def log(port):
-        return LogVectorOutput(port, builder, scenario.sensors.period_s)
-    out = station.GetOutputPort
-    loggers = Loggers(
-        object=log(out("object_state")), ir=log(out("ir_levels")),
-        bumper=log(out("bumper")),
-        phase=log(controller.state_machine.GetOutputPort("phase")),
-        actuation=log(out("net_actuation")), arm=log(out("arm_state")),
-        params=log(controller.parameters.get_output_port()))
-    # Meshcat, when asked (loopback only; see replay.make_meshcat).
-    if meshcat is not None:
-        MeshcatVisualizer.AddToBuilder(
-            builder, out("query_object"), meshcat,
-            MeshcatVisualizerParams(publish_period=1 / 60))
-    return EpisodeDiagram(diagram=builder.Build(), station=station,
-                          controller=controller, loggers=loggers,
-                          meshcat=meshcat)
-
 
 def _take_out_pd_gains(plant: MultibodyPlant, hand) -> list[tuple]:
     """Removes the in-plant PD controllers of the hand's actuators and
@@ -511,100 +414,4 @@ def add_finger_servos(builder: DiagramBuilder, plant: MultibodyPlant, hand):
     builder.Connect(pd.get_output_port(), plant.get_actuation_input_port(hand))
     return mux
 
-
-def initialize(episode: EpisodeDiagram, scenario: Scenario) -> Simulator:
-    """A simulator at the episode's initial conditions (identical each time),
-    integrating as the scenario's simulator_config says."""
-    simulator = Simulator(episode.diagram)
-    ApplySimulatorConfig(scenario.simulator_config, simulator)
-    station = episode.station
-    plant = station.plant
-    plant_context = plant.GetMyMutableContextFromRoot(
-        simulator.get_mutable_context())
-    plant.SetPositions(plant_context, station.arm,
-                       throw.start_q(scenario.throw))
-    plant.SetPositions(plant_context, station.hand, robot.HAND_OPEN)
-    plant.SetFreeBodyPose(plant_context, station.object_body,
-                          station.X_WO_initial)
-    if hand_idle_until_handover(scenario):
-        lock_hand(plant, plant_context, station.hand)
-    simulator.Initialize()
-    return simulator
-
-
-def hand_idle_until_handover(scenario: Scenario) -> bool:
-    """Whether the fingers hold still, open, from the start to the release
-    time's handover to the catch's plant step (episode.hand_over): the palm
-    toss without release noise (a noisy throw may end, and the fingers
-    start to pre-shape, before it), handed over at the release time
-    (catch_time_step_s). Their joints are then locked through the throw
-    (`lock_hand`): no finger touches the tossed object, and SAP leaves
-    locked joints out of its solve. The catch's diagram, which the
-    handover builds, starts with them free (continue_with copies the
-    plant's state, not its parameters, where Drake keeps the locks)."""
-    return (throw.is_toss(scenario.throw)
-            and ThrowPerturbation.draw(scenario.throw.noise, 1).is_zero()
-            and hands_over(scenario))
-
-
-def lock_hand(plant: MultibodyPlant, plant_context, hand) -> None:
-    """Locks every joint of the hand in plant_context (Joint::Lock: its
-    velocity zeroed, the joint held where it is)."""
-    for index in plant.GetJointIndices(hand):
-        plant.get_joint(index).Lock(plant_context)
-
-
-def continue_with(simulator: Simulator, episode: EpisodeDiagram,
-                  other: EpisodeDiagram, scenario: Scenario) -> Simulator:
-    """A simulator of `other`, an episode diagram built like `episode` but
-    for `scenario` (another plant time step, say), at `simulator`'s time and
-    state: the plant's, the controller's and every system's of ours.
-    SceneGraph's state is not copied (it holds the other diagram's geometry
-    ids; its poses follow the plant's state). Continuing with `other` built
-    for the same scenario reproduces `simulator`'s run bit for bit."""
-    source = simulator.get_context()
-    target = Simulator(other.diagram)
-    ApplySimulatorConfig(scenario.simulator_config, target)
-    context = target.get_mutable_context()
-    context.SetTime(source.get_time())
-    for a, b in zip(episode.diagram.GetSystems(), other.diagram.GetSystems(),
-                    strict=True):
-        if type(a) is not type(b):
-            raise ValueError(f"continue_with: {a.get_name()} and "
-                             f"{b.get_name()}: not diagrams built alike")
-        if isinstance(a, SceneGraph):
-            continue
-        context_a = a.GetMyContextFromRoot(source)
-        context_b = b.GetMyMutableContextFromRoot(context)
-        for i in range(context_a.num_discrete_state_groups()):
-            value = context_a.get_discrete_state(i).value()
-            # The catch state machine's table of references (computed at
-            # the other plant step) is made again by `continue_at`, below;
-            # a group of another size is left to it.
-            if context_b.get_discrete_state(i).size() == value.size:
-                context_b.SetDiscreteState(i, value)
-        for i in range(context_a.num_abstract_states()):
-            context_b.get_mutable_abstract_state(i).SetFrom(
-                context_a.get_abstract_state(i))
-        if context_a.num_continuous_states():
-            context_b.SetContinuousState(
-                context_a.get_continuous_state_vector().CopyToVector())
-        if isinstance(a, MultibodyPlant):
-            continue  # its parameters are the model's, built alike
-        # Our systems' parameters: the catch parameters and the grasp pose,
-        # which may have been set in the running context.
-        for i in range(context_a.num_numeric_parameter_groups()):
-            context_b.get_mutable_numeric_parameter(i).SetFromVector(
-                context_a.get_numeric_parameter(i).get_value())
-        for i in range(context_a.num_abstract_parameters()):
-            context_b.get_mutable_abstract_parameter(i).SetFrom(
-                context_a.get_abstract_parameter(i))
-    # The catch state machine counts plant steps to find the sensors'
-    # samples: count them at the other plant's step (unchanged at the same
-    # step).
-    machine = other.controller.state_machine
-    machine.continue_at(machine.GetMyMutableContextFromRoot(context))
-    # The state is already the one to go on from: no initialization events.
-    target.Initialize(InitializeParams(suppress_initialization_events=True))
-    return target
 

@@ -27,7 +27,8 @@ import numpy as np
 import torch
 from pydrake.systems.framework import EventStatus
 
-from regrasp_drake.episode import run as run_module
+from regrasp_drake.episode import episode as episode_module
+from regrasp_drake.episode.result import start_grasp
 from regrasp_drake.learning.flight_predictor import FlightPredictor
 from regrasp_drake.learning.learning_phase import _Phase
 from regrasp_drake.parameter_space import cell_parameters
@@ -149,7 +150,7 @@ class Recorder:
 
 
 CURRENT = {"recorder": None}
-_original_advance = run_module.advance_to_outcome
+_original_advance = episode_module.advance_to_outcome
 
 
 def _recording_advance(simulator, episode, scenario, t_final=None):
@@ -159,7 +160,7 @@ def _recording_advance(simulator, episode, scenario, t_final=None):
     return _original_advance(simulator, episode, scenario, t_final)
 
 
-run_module.advance_to_outcome = _recording_advance
+episode_module.advance_to_outcome = _recording_advance
 
 
 def scenario_for(kind, offset_mm, shifts, step=None):
@@ -196,12 +197,12 @@ def catch(name, kind, offset_mm, shifts, cell=None, step=None, *, ik, model,
         scenario = scenario_for(kind, offset_mm, shifts, step)
     cell = tuple(net_cell if cell is None else cell)
     params = cell_parameters(cell)
-    start = run_module.start_grasp(scenario, obj)
+    start = start_grasp(scenario, obj)
     rec = Recorder(obj, start.R_PO)
     CURRENT["recorder"] = rec
     correction = ReleaseCorrection()
     t0 = time.perf_counter()
-    result = run_module.run_episode(
+    result = episode_module.run_episode(
         scenario, obj, ik=ik, X_WG=plan.X_WG, catch_parameters=params,
         throw_number=1, at_release=release_correction(
             scenario, obj, ik, plan, params, correction))

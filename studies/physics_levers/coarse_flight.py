@@ -19,8 +19,8 @@ import numpy as np
 from pydrake.systems.framework import DiagramBuilder
 
 from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.episode.run import run_episode
-from regrasp_drake.episode.simulate import THROWS, release_time
+from regrasp_drake.episode.episode import run_episode
+from regrasp_drake.episode.episode import THROWS, release_time
 from regrasp_drake.station.scenario import load_scenario, with_catch_time_step
 from regrasp_drake.station.plant import add_world
 from regrasp_drake.throw_catch import plan_catch, watch

@@ -3,7 +3,7 @@
     .venv/bin/python studies/physics_levers/hand_lock.py [OBJECT ...] [--pairs 5]
 
 Per object (default table1-row2 hammer-d200-2 can-d300-3), with and without
-the lock (station.hand_idle_until_handover turned off for "free"): the
+the lock (diagram.hand_idle_until_handover turned off for "free"): the
 watching throw's object state at the release time, the planned catch point,
 and one catch (h_catch 0.3, h_down -0.07): outcome, final position, grasp.
 Then the wall time of the episode from the start (no throw cache), locked
@@ -19,19 +19,19 @@ import statistics
 import numpy as np
 
 from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.station import station
-from regrasp_drake.episode.run import run_episode
-from regrasp_drake.episode.simulate import THROWS, release_time
+from regrasp_drake.episode import diagram
+from regrasp_drake.episode.episode import run_episode
+from regrasp_drake.episode.episode import THROWS, release_time
 from regrasp_drake.station.scenario import load_scenario
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world.objects import resolve_object
 
-LOCKING = station.hand_idle_until_handover
+LOCKING = diagram.hand_idle_until_handover
 PARAMETERS = (0.3, -0.07)
 
 
 def set_lock(on: bool) -> None:
-    station.hand_idle_until_handover = LOCKING if on else (lambda s: False)
+    diagram.hand_idle_until_handover = LOCKING if on else (lambda s: False)
 
 
 def episode(scenario, obj, ik, on: bool) -> dict:

@@ -20,7 +20,7 @@ import time
 import numpy as np
 import torch
 
-from regrasp_drake.episode.run import run_episode
+from regrasp_drake.episode.episode import run_episode
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import sensors
 from regrasp_drake.station.scenario import load_scenario

@@ -18,7 +18,7 @@ import argparse
 import numpy as np
 
 from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.episode.simulate import THROWS, release_time
+from regrasp_drake.episode.episode import THROWS, release_time
 from regrasp_drake.station.scenario import load_scenario
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world.objects import resolve_object

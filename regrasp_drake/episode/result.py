@@ -1,32 +1,14 @@
-"""One episode: build the station, throw, (watch or catch), read the outcome.
-
-The steps, each with one home: to the release time
-(episode.simulate.start_episode: a throw simulated before gone on from, or
-build, station.build_episode_diagram; initialise, station.initialize; and
-hand over at the release time to the catch's plant step, under the catch's
-scenario), advance (episode.simulate.advance_to_outcome), read
-(`read_result`: the outcome, how it ended, the grasp against the target)."""
+"""What an episode came to (`EpisodeResult`), read at its end
+(`read_result`: the outcome, how it ended, the grasp against the target),
+and the signals its loggers kept (`Logs`, `read_logs`)."""
 
 import dataclasses as dc
-import time
 
 import numpy as np
-from pydrake.math import RigidTransform
 
-from regrasp_drake.episode.simulate import (
-    THROWS,
-    Logs,
-    ThrowCache,
-    advance_to_outcome,
-    monitor_state,
-    read_logs,
-    read_outcome,
-    release_time,
-    start_episode,
-)
+from regrasp_drake.episode.diagram import EpisodeDiagram, Loggers
 from regrasp_drake.parameter_space import HELD_OUTCOMES
 from regrasp_drake.planning import grasp
-from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.grasp_monitor import (
     GraspMonitor,
     Outcome,
@@ -37,12 +19,20 @@ from regrasp_drake.station.scenario import (
     target_of,
 )
 from regrasp_drake.station.start_pose import start_poses
-from regrasp_drake.station.station import (
-    EpisodeDiagram,
-    build_episode_diagram,
-    fixed_catch_parameters,
-)
 from regrasp_drake.world.objects import ObjectSpec
+
+
+@dc.dataclass
+class Logs:
+    """Signals sampled at the sensors' rate."""
+    t: np.ndarray           # [s]
+    object_state: np.ndarray  # (13, n): quaternion wxyz, p_WO, w_WO, v_WO
+    ir: np.ndarray          # (13, n) levels
+    bumper: np.ndarray      # (n,)
+    phase: np.ndarray       # (n,)
+    actuation: np.ndarray   # (16, n) net actuation, [N·m]
+    arm_state: np.ndarray   # (12, n)
+    params: np.ndarray      # (2, n) h_catch, h_down
 
 
 @dc.dataclass
@@ -129,66 +119,6 @@ def _rounded(value: float | None, digits: int) -> float | None:
     return None if value is None else round(value, digits)
 
 
-def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
-                X_WG: RigidTransform | None, catch_parameters=None,
-                mlp_features=None, meshcat=None,
-                throw_number: int = 1, at_release=None,
-                throws: "ThrowCache | None" = None) -> EpisodeResult:
-    """Throws `obj` and, unless X_WG is None (a watching throw), catches it.
-    throw_number seeds the release noise, if the scenario has any.
-    throws: the cache of throws simulated to their release this episode
-    goes on from and keeps its throw in (default: the process's, THROWS).
-
-    at_release: plans the catch while the object flies. Called once, when
-    the throw ends (`release_time`, before the state machine reads the grasp
-    pose), with the object's state then (13: quaternion wxyz, p_WO, w_WO,
-    v_WO) and the time; it returns the grasp pose X_WG and the catch
-    parameters (h_catch, h_down) that replace the ones given, None (the
-    ones given stay: nothing in the episode changes), or raises
-    InputError (no catch planned: the episode ends there and the error
-    propagates). Requires catch_parameters and an X_WG (any: it is
-    replaced)."""
-    t0 = time.perf_counter()
-    start_pose = start_grasp(scenario, obj)
-    catch_parameters = fixed_catch_parameters(scenario, X_WG,
-                                              catch_parameters)
-
-    def build(s):
-        return build_episode_diagram(
-            s, obj, ik=ik, X_WG=X_WG, catch_parameters=catch_parameters,
-            mlp_features=mlp_features, meshcat=meshcat,
-            throw_number=throw_number)
-
-    handover, build_s = start_episode(
-        scenario, obj, build, ik=ik, X_WG=X_WG,
-        catch_parameters=catch_parameters, throw_number=throw_number,
-        meshcat=meshcat, throws=THROWS if throws is None else throws)
-    # From here on the episode goes on under the catch's scenario.
-    simulator, episode, scenario = handover.now
-    message = handover.message
-    if handover.running:
-        if at_release is not None:
-            try:
-                _plan_at_release(simulator, episode, scenario, at_release)
-            except Exception:
-                if meshcat is not None:
-                    meshcat.StopRecording()
-                raise
-        message = advance_to_outcome(simulator, episode, scenario)
-    wall_s = time.perf_counter() - t0
-    if meshcat is not None:
-        meshcat.StopRecording()
-        meshcat.PublishRecording()
-    context = simulator.get_context()
-    logs = handover.logs(read_logs(episode.loggers, context))
-    h = logs.params[:, -1] if logs.params.shape[1] else (None, None)
-    return read_result(
-        episode, context, scenario, obj, start_pose, message=message,
-        h_catch=None if X_WG is None else float(h[0]),
-        h_down=None if X_WG is None else float(h[1]),
-        wall_s=wall_s, build_s=build_s, logs=logs)
-
-
 def read_result(episode: EpisodeDiagram, context, scenario: Scenario,
                 obj: ObjectSpec, start: grasp.Grasp, *, message: str,
                 h_catch: float | None, h_down: float | None, wall_s: float,
@@ -197,8 +127,8 @@ def read_result(episode: EpisodeDiagram, context, scenario: Scenario,
     """The result of the episode that ended in `context` (its simulator's,
     at the end) with `message` (advance_to_outcome's): its outcome, how it
     ended (read_ending) and the grasp against the scenario's target
-    (judge_grasp). The one reader of an episode's end, for `run_episode`
-    and for every forked cell (branching.run_cells)."""
+    (judge_grasp). The one reader of an episode's end, for `Episode` and
+    for every forked cell (branching.run_cells)."""
     outcome, grasp_t = read_outcome(episode, context, message)
     ending = read_ending(episode, context, outcome)
     outcome, grasp_fields = judge_grasp(scenario, obj, episode, context,
@@ -256,26 +186,6 @@ def judge_grasp(scenario: Scenario, obj: ObjectSpec, episode: EpisodeDiagram,
         "grasp_error": verdict.as_dict()}
 
 
-def _plan_at_release(simulator, episode: EpisodeDiagram, scenario,
-                     at_release) -> None:
-    """Advances to the release time, asks at_release for the plan, and sets
-    the grasp pose and catch parameters in the context (none, when it
-    returns None). Drake handles the update events of a time at the start
-    of the next step, so the state machine's update at this time reads the
-    new values."""
-    t = release_time(scenario)
-    if simulator.get_context().get_time() < t:  # not handed over there
-        simulator.AdvanceTo(t)
-    context = simulator.get_mutable_context()
-    station, controller = episode.station, episode.controller
-    state = station.Eval("object_state", context)
-    planned = at_release(np.asarray(state).copy(), t)
-    if planned is None:
-        return
-    X_WG, parameters = planned
-    controller.set_task(context, X_WG=X_WG, catch_parameters=parameters)
-
-
 def read_ending(episode: EpisodeDiagram, context, outcome: str) -> dict:
     """How the episode ended, beyond its outcome: `drop_reason`, which of
     the grasp monitor's tests made it dropped ("near_ground", "below_palm",
@@ -307,5 +217,32 @@ _CONTACT_FIELDS = ("touching", "held_by_contact", "slip_m_per_s",
                    "spin_rad_per_s")
 
 
-__all__ = ["EpisodeResult", "Logs", "Outcome", "read_result",
-           "run_episode"]
+def read_outcome(episode: EpisodeDiagram, context,
+                 message: str) -> tuple[str, float | None]:
+    """The episode's outcome name and the time the grasp was recognized."""
+    state = monitor_state(episode, context)
+    outcome = "failed" if message else GraspMonitor.outcome(
+        state).name.lower()
+    grasp_t = GraspMonitor.grasp_time(state)
+    return outcome, (grasp_t if grasp_t >= 0 else None)
+
+
+def monitor_state(episode: EpisodeDiagram, context) -> np.ndarray:
+    """The grasp monitor's state in the diagram's context `context`."""
+    monitor = episode.controller.monitor
+    return monitor.GetOutputPort("monitor_state").Eval(
+        monitor.GetMyContextFromRoot(context))
+
+
+def read_logs(loggers: Loggers, context) -> Logs:
+    """The signals the loggers kept in the diagram's context `context`."""
+    def log(sink):
+        return sink.FindLog(context).data().copy()
+    times = loggers.object.FindLog(context).sample_times().copy()
+    return Logs(t=times, object_state=log(loggers.object),
+                ir=log(loggers.ir), bumper=log(loggers.bumper)[0],
+                phase=log(loggers.phase)[0], actuation=log(loggers.actuation),
+                arm_state=log(loggers.arm), params=log(loggers.params))
+
+
+__all__ = ["EpisodeResult", "Logs", "Outcome", "read_result"]

@@ -1,0 +1,219 @@
+"""One episode's diagram and its simulator: the station and the catch
+controller (station/station.py) wired top to bottom with the loggers and
+Meshcat (`build_episode_diagram`), a simulator at the episode's initial
+conditions (`initialize`), and the same state gone on with in a diagram
+built for another plant step (`continue_with`, the handover at the release
+time). The station keeps the hardware; what one episode is, is here."""
+
+import dataclasses as dc
+
+from pydrake.geometry import (
+    Meshcat,
+    MeshcatVisualizer,
+    MeshcatVisualizerParams,
+    SceneGraph,
+)
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.analysis import (
+    ApplySimulatorConfig,
+    InitializeParams,
+    Simulator,
+)
+from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.primitives import LogVectorOutput, VectorLogSink
+
+from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station import throw
+from regrasp_drake.station.catch_state_machine import ThrowPerturbation
+from regrasp_drake.station.scenario import Scenario, hands_over
+from regrasp_drake.station.station import (
+    CatchController,
+    Station,
+    add_catch_controller,
+    add_station,
+)
+from regrasp_drake.world import robot
+from regrasp_drake.world.object_model import ObjectSpec
+
+
+@dc.dataclass
+class Loggers:
+    """Signals logged at the sensors' rate."""
+    object: VectorLogSink      # the object's state (13)
+    ir: VectorLogSink          # the infrared levels (13)
+    bumper: VectorLogSink      # (1)
+    phase: VectorLogSink       # the state machine's phase (1)
+    actuation: VectorLogSink   # the plant's net actuation (16), [N·m]
+    arm: VectorLogSink         # the arm's state (12)
+    params: VectorLogSink      # (h_catch, h_down), [m]
+
+
+@dc.dataclass
+class EpisodeDiagram:
+    """One episode's diagram: the station, the catch controller wired to
+    its ports, the loggers and Meshcat."""
+    diagram: Diagram
+    station: Station
+    controller: CatchController
+    loggers: Loggers
+    meshcat: Meshcat | None
+
+
+def fixed_catch_parameters(scenario: Scenario, X_WG: RigidTransform | None,
+                           catch_parameters=None):
+    """The (h_catch, h_down) an episode's diagram holds fixed, [m]: those
+    given; else, on a watching throw or when the scenario's
+    catch.parameter_source is "fixed", the scenario's catch.h_catch_m and
+    h_down_m; else None (the MLP system predicts them)."""
+    if catch_parameters is None and (
+            X_WG is None or scenario.catch.parameter_source == "fixed"):
+        return (scenario.catch.h_catch_m, scenario.catch.h_down_m)
+    return catch_parameters
+
+
+def build_episode_diagram(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
+                          X_WG: RigidTransform | None, catch_parameters=None,
+                          mlp_features=None, meshcat: Meshcat | None = None,
+                          throw_number: int = 1) -> EpisodeDiagram:
+    """One episode's diagram: the station, the catch controller wired to
+    its ports, the loggers, Meshcat when asked.
+
+    X_WG: the palm's grasp pose; None makes a watching throw (no catch).
+    catch_parameters: (h_catch, h_down) in m, or None to take them as the
+    scenario's `catch.parameter_source` says: its fixed values, or the MLP
+    system fed with `mlp_features` (v_catch, h_cm, r_cm, d_obj, v_conv).
+    throw_number: which throw of a run this is; it seeds the release noise
+    when the scenario has any (throw.noise).
+    """
+    catch_parameters = fixed_catch_parameters(scenario, X_WG, catch_parameters)
+    if robot.directives_yaml(ik.directives) != robot.directives_yaml(
+            scenario.directives):
+        raise ValueError("build_episode_diagram: the ArmIk was built for "
+                         "other directives than the scenario's; expected "
+                         "ArmIk(scenario.directives)")
+    builder = DiagramBuilder()
+    # The station: plant, arm controller, finger servos, sensors.
+    station = add_station(builder, scenario, obj)
+    # The catch controller, wired to the station's ports.
+    controller = add_catch_controller(
+        builder, station, scenario, obj, ik=ik, X_WG=X_WG,
+        catch_parameters=catch_parameters, mlp_features=mlp_features,
+        throw_number=throw_number)
+
+    # Loggers, sampled at the sensors' rate.
+    def log(port):
+        return LogVectorOutput(port, builder, scenario.sensors.period_s)
+    out = station.GetOutputPort
+    loggers = Loggers(
+        object=log(out("object_state")), ir=log(out("ir_levels")),
+        bumper=log(out("bumper")),
+        phase=log(controller.state_machine.GetOutputPort("phase")),
+        actuation=log(out("net_actuation")), arm=log(out("arm_state")),
+        params=log(controller.parameters.get_output_port()))
+    # Meshcat, when asked (loopback only; see replay.make_meshcat).
+    if meshcat is not None:
+        MeshcatVisualizer.AddToBuilder(
+            builder, out("query_object"), meshcat,
+            MeshcatVisualizerParams(publish_period=1 / 60))
+    return EpisodeDiagram(diagram=builder.Build(), station=station,
+                          controller=controller, loggers=loggers,
+                          meshcat=meshcat)
+
+
+def initialize(episode: EpisodeDiagram, scenario: Scenario) -> Simulator:
+    """A simulator at the episode's initial conditions (identical each time),
+    integrating as the scenario's simulator_config says."""
+    simulator = Simulator(episode.diagram)
+    ApplySimulatorConfig(scenario.simulator_config, simulator)
+    station = episode.station
+    plant = station.plant
+    plant_context = plant.GetMyMutableContextFromRoot(
+        simulator.get_mutable_context())
+    plant.SetPositions(plant_context, station.arm,
+                       throw.start_q(scenario.throw))
+    plant.SetPositions(plant_context, station.hand, robot.HAND_OPEN)
+    plant.SetFreeBodyPose(plant_context, station.object_body,
+                          station.X_WO_initial)
+    if hand_idle_until_handover(scenario):
+        lock_hand(plant, plant_context, station.hand)
+    simulator.Initialize()
+    return simulator
+
+
+def hand_idle_until_handover(scenario: Scenario) -> bool:
+    """Whether the fingers hold still, open, from the start to the release
+    time's handover to the catch's plant step (episode.hand_over): the palm
+    toss without release noise (a noisy throw may end, and the fingers
+    start to pre-shape, before it), handed over at the release time
+    (catch_time_step_s). Their joints are then locked through the throw
+    (`lock_hand`): no finger touches the tossed object, and SAP leaves
+    locked joints out of its solve. The catch's diagram, which the
+    handover builds, starts with them free (continue_with copies the
+    plant's state, not its parameters, where Drake keeps the locks)."""
+    return (throw.is_toss(scenario.throw)
+            and ThrowPerturbation.draw(scenario.throw.noise, 1).is_zero()
+            and hands_over(scenario))
+
+
+def lock_hand(plant: MultibodyPlant, plant_context, hand) -> None:
+    """Locks every joint of the hand in plant_context (Joint::Lock: its
+    velocity zeroed, the joint held where it is)."""
+    for index in plant.GetJointIndices(hand):
+        plant.get_joint(index).Lock(plant_context)
+
+
+def continue_with(simulator: Simulator, episode: EpisodeDiagram,
+                  other: EpisodeDiagram, scenario: Scenario) -> Simulator:
+    """A simulator of `other`, an episode diagram built like `episode` but
+    for `scenario` (another plant time step, say), at `simulator`'s time and
+    state: the plant's, the controller's and every system's of ours.
+    SceneGraph's state is not copied (it holds the other diagram's geometry
+    ids; its poses follow the plant's state). Continuing with `other` built
+    for the same scenario reproduces `simulator`'s run bit for bit."""
+    source = simulator.get_context()
+    target = Simulator(other.diagram)
+    ApplySimulatorConfig(scenario.simulator_config, target)
+    context = target.get_mutable_context()
+    context.SetTime(source.get_time())
+    for a, b in zip(episode.diagram.GetSystems(), other.diagram.GetSystems(),
+                    strict=True):
+        if type(a) is not type(b):
+            raise ValueError(f"continue_with: {a.get_name()} and "
+                             f"{b.get_name()}: not diagrams built alike")
+        if isinstance(a, SceneGraph):
+            continue
+        context_a = a.GetMyContextFromRoot(source)
+        context_b = b.GetMyMutableContextFromRoot(context)
+        for i in range(context_a.num_discrete_state_groups()):
+            value = context_a.get_discrete_state(i).value()
+            # The catch state machine's table of references (computed at
+            # the other plant step) is made again by `continue_at`, below;
+            # a group of another size is left to it.
+            if context_b.get_discrete_state(i).size() == value.size:
+                context_b.SetDiscreteState(i, value)
+        for i in range(context_a.num_abstract_states()):
+            context_b.get_mutable_abstract_state(i).SetFrom(
+                context_a.get_abstract_state(i))
+        if context_a.num_continuous_states():
+            context_b.SetContinuousState(
+                context_a.get_continuous_state_vector().CopyToVector())
+        if isinstance(a, MultibodyPlant):
+            continue  # its parameters are the model's, built alike
+        # Our systems' parameters: the catch parameters and the grasp pose,
+        # which may have been set in the running context.
+        for i in range(context_a.num_numeric_parameter_groups()):
+            context_b.get_mutable_numeric_parameter(i).SetFromVector(
+                context_a.get_numeric_parameter(i).get_value())
+        for i in range(context_a.num_abstract_parameters()):
+            context_b.get_mutable_abstract_parameter(i).SetFrom(
+                context_a.get_abstract_parameter(i))
+    # The catch state machine counts plant steps to find the sensors'
+    # samples: count them at the other plant's step (unchanged at the same
+    # step).
+    machine = other.controller.state_machine
+    machine.continue_at(machine.GetMyMutableContextFromRoot(context))
+    # The state is already the one to go on from: no initialization events.
+    target.Initialize(InitializeParams(suppress_initialization_events=True))
+    return target
+

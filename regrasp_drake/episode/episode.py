@@ -1,0 +1,418 @@
+"""One episode you can hold, run in stages:
+
+    episode = Episode(scenario, obj, ik=ik, X_WG=X_WG, catch_parameters=h)
+    episode.start()                      # built (or a kept throw resumed)
+    release = episode.advance_to_release()   # the object at the release
+    episode.set_task(X_WG=..., catch_parameters=...)  # the catch planned
+    episode.advance_to_outcome()         # until the grasp monitor ends it
+    result = episode.result()            # the outcome, the grasp, the logs
+
+`run_episode` is those stages in one call, with an optional `at_release`
+plan. Here too, how an episode advances: its release time
+(`release_time`), the handover there to the catch's plant step
+(`hand_over`), the throws kept to go on from (`ThrowCache`), the advance to
+the outcome (`advance_to_outcome`). What it simulates is
+episode/diagram.py's; what it came to, episode/result.py's."""
+
+import dataclasses as dc
+import hashlib
+import math
+import pickle
+import time
+
+import numpy as np
+from pydrake.math import RigidTransform
+from pydrake.systems.analysis import Simulator
+
+from regrasp_drake import memo
+from regrasp_drake.episode.diagram import (
+    EpisodeDiagram,
+    build_episode_diagram,
+    continue_with,
+    fixed_catch_parameters,
+    initialize,
+)
+from regrasp_drake.episode.result import (
+    EpisodeResult,
+    Logs,
+    read_logs,
+    read_outcome,
+    read_result,
+    start_grasp,
+)
+from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station import throw
+from regrasp_drake.station.catch_state_machine import ThrowPerturbation
+from regrasp_drake.station.scenario import (
+    Scenario,
+    catch_phase_scenario,
+    hands_over,
+    scenario_digest,
+)
+from regrasp_drake.world.objects import ObjectSpec
+
+
+def release_time(scenario: Scenario) -> float:
+    """The state machine's first update at or after the throw's end, [s]: it
+    reads X_WG there and the arm leaves for the grasp pose. The object flies
+    free from here (the flight predictor predicts its state at this moment
+    too)."""
+    period = scenario.sensors.period_s
+    t = throw.free_time_s(scenario)
+    return math.ceil(t / period - 1e-9) * period
+
+
+@dc.dataclass
+class Handover:
+    """An episode handed over, at the release time, from the throw's plant
+    step to the catch's (scenario.catch_time_step_s; see `hand_over`)."""
+    # What the episode goes on with: the catch's simulator, diagram and
+    # scenario, or the throw's when there was no handover.
+    simulator: Simulator
+    diagram: EpisodeDiagram
+    scenario: Scenario
+    # The throw's (simulator, diagram) when handed over, for its logs.
+    before: tuple[Simulator, EpisodeDiagram] | None = None
+    # A failure's message, if the episode failed before the release time.
+    message: str = ""
+    # False when the episode ended before the release time.
+    running: bool = True
+    # The catch parameters of this episode when its throw was simulated
+    # for another (ThrowCache): its logs show this episode's from the start.
+    parameters: tuple | None = None
+
+    def logs(self, after: Logs) -> Logs:
+        """The whole episode's logs: the throw's, then `after`'s (the
+        loggers of the catch's diagram, from the release time on)."""
+        if self.before is None:
+            return after
+        simulator, episode = self.before
+        first = read_logs(episode.loggers, simulator.get_context())
+        if self.parameters is not None:
+            first.params = np.tile(np.reshape(self.parameters, (2, 1)),
+                                   (1, first.params.shape[1]))
+        # Both diagrams log the release time: the throw's as its last step
+        # ends, the catch's as its simulator starts there. The first is the
+        # one a run without the handover logs.
+        keep = after.t > first.t[-1]
+        return Logs(**{f.name: np.concatenate(
+            [getattr(first, f.name), getattr(after, f.name)[..., keep]],
+            axis=-1) for f in dc.fields(Logs)})
+
+
+def hand_over(simulator, episode: EpisodeDiagram, scenario: Scenario,
+              rebuild) -> Handover:
+    """Simulates `episode` to the release time and goes on from there with
+    the diagram `rebuild(later)` builds for `later`, the scenario at the
+    catch's plant step (scenario.catch_phase_scenario), state for state
+    (diagram.continue_with). Without a catch step of its own, or when the
+    episode ends first, nothing is handed over. Drake handles the update
+    events of a time at the start of the next step, so every event at the
+    release time runs in the catch's diagram."""
+    later = catch_phase_scenario(scenario)
+    if later is None:
+        return Handover(simulator, episode, scenario)
+    t = release_time(scenario)
+    message = advance_to_outcome(simulator, episode, scenario, t)
+    context = simulator.get_context()
+    if (message or context.get_time() < t
+            or read_outcome(episode, context, "")[0] != "running"):
+        return Handover(simulator, episode, scenario, message=message,
+                        running=False)
+    other = rebuild(later)
+    simulator_later = continue_with(simulator, episode, other, later)
+    return Handover(simulator_later, other, later,
+                    before=(simulator, episode))
+
+
+def advance_to_outcome(simulator, episode: EpisodeDiagram, scenario,
+                       t_final=None) -> str:
+    """Advances until the grasp monitor (or a failure) ends the episode, or
+    to t_final. Returns "" or the failure's message: an unreachable pose, or
+    a failed contact solve (recorded, never raised)."""
+    if t_final is None:
+        t_final = scenario.monitor.max_time_s + 1.0
+    try:
+        status = simulator.AdvanceTo(t_final)
+        # An unreachable pose.
+        if status.system() is episode.controller.state_machine:
+            return status.message()
+    except Exception as e:  # a failed contact solve
+        return str(e).strip().splitlines()[0] if str(e).strip() else repr(e)
+    return ""
+
+
+class ThrowCache:
+    """The throws already simulated to their release, to go on from again.
+
+    Every throw of an object repeats the same initial conditions, and until
+    the release time nothing in an episode reads the grasp pose, the catch
+    parameters or whether it watches: the throw's simulation to the release
+    is the same for a watching throw and for every catch of the object. So
+    the first episode of an object keeps its throw's simulator at the
+    handover (`hand_over`'s `before`: it is only read from there on) and
+    the diagram it went on in from there, and a later one goes on from that
+    state in that diagram (`diagram.continue_with`, which copies the
+    state), with its own grasp pose, parameters and whether it watches set
+    (CatchController.set_task): the same episode bit for bit (tested),
+    without the throw's 3 280 steps of 0.25 ms and without building a
+    diagram (a diagram holds no state: that is in each simulator's
+    context). Kept for the last `size` throws, in
+    the process's cache THROWS (listed in memo.caches()) unless the caller
+    passes its own; only for scenarios handed over at the release time
+    (catch_time_step_s), fixed catch parameters and no Meshcat (which
+    must record the throw). A throw with release noise is its own (the
+    perturbation is part of the key). `enabled = False` turns it off."""
+
+    def __init__(self, size: int = 2):
+        self.size = size
+        self.enabled = True
+        # key -> (simulator, episode, the catch's scenario), oldest first
+        self._kept = {}
+        # key -> (ik, the diagram at the catch's step the throw's episodes
+        # go on in, built with arm IK ik)
+        self._diagrams = {}
+        self.hits = 0
+
+    def key(self, scenario, obj, throw_number, catch_parameters, meshcat):
+        """The throw's key, or None when it cannot be reused (see above)."""
+        if (not self.enabled or meshcat is not None
+                or catch_parameters is None
+                or not hands_over(scenario)):
+            return None
+        digest = scenario_digest(scenario)
+        perturbation = ThrowPerturbation.draw(scenario.throw.noise,
+                                              throw_number)
+        return (digest, hashlib.sha256(pickle.dumps(obj)).hexdigest(),
+                repr(perturbation))
+
+    def keep(self, key, handover: "Handover", ik) -> None:
+        """Keeps the throw `handover` handed over (at the release time) and
+        the diagram it goes on in, built with arm IK `ik`."""
+        if key is None or not handover.running or handover.before is None:
+            return
+        self._kept.pop(key, None)
+        self._kept[key] = (*handover.before, handover.scenario)
+        self._diagrams[key] = (ik, handover.diagram)
+        while len(self._kept) > self.size:
+            del self._kept[next(iter(self._kept))]
+        self._diagrams = {k: v for k, v in self._diagrams.items()
+                          if k in self._kept}
+
+    def resume(self, key, rebuild, X_WG, catch_parameters, ik):
+        """A Handover that goes on from the kept throw of `key` in the
+        diagram kept with it (or, for another arm IK than `ik`, the one
+        `rebuild(later)` builds), with its grasp pose X_WG (None: a
+        watching throw) and catch parameters set; None when there is
+        none."""
+        if key is None or key not in self._kept:
+            return None
+        simulator, episode, later = self._kept[key]
+        built = self._diagrams.get(key)
+        if built is None or built[0] is not ik:
+            built = self._diagrams[key] = (ik, rebuild(later))
+        other = built[1]
+        target = continue_with(simulator, episode, other, later)
+        # continue_with copied the kept throw's task.
+        other.controller.set_task(
+            target.get_mutable_context(),
+            X_WG=X_WG if X_WG is not None else RigidTransform(),
+            catch_parameters=catch_parameters, watching=X_WG is None)
+        self.hits += 1
+        return Handover(target, other, later, before=(simulator, episode),
+                        parameters=tuple(float(p) for p in catch_parameters))
+
+    def clear(self) -> None:
+        self._kept.clear()
+        self._diagrams.clear()
+
+
+THROWS = ThrowCache()
+memo.register("throws", THROWS)
+
+
+@dc.dataclass(frozen=True)
+class Release:
+    """The object at the release time, when the catch may still be planned
+    (`Episode.set_task`): the state machine reads the grasp pose at the
+    first update from here on."""
+    t: float                  # the release time, [s]
+    object_state: np.ndarray  # (13,): quaternion wxyz, p_WO, w_WO, v_WO
+
+
+class Episode:
+    """One throw of `obj` and, unless X_WG is None (a watching throw), its
+    catch, held between the stages of its run (see the module's docstring).
+
+    X_WG: the palm's grasp pose; catch_parameters: (h_catch, h_down), [m],
+    or None for the scenario's catch.parameter_source (fixed values, or the
+    MLP system fed with `mlp_features`); meshcat records the episode from
+    its start; throw_number seeds the release noise, if the scenario has
+    any; throws: the cache of throws simulated to their release this
+    episode goes on from and keeps its throw in (default: the process's,
+    THROWS)."""
+
+    def __init__(self, scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
+                 X_WG: RigidTransform | None, catch_parameters=None,
+                 mlp_features=None, meshcat=None, throw_number: int = 1,
+                 throws: ThrowCache | None = None):
+        self._t0 = time.perf_counter()
+        self.obj, self.ik = obj, ik
+        self.X_WG, self.mlp_features = X_WG, mlp_features
+        self.meshcat, self.throw_number = meshcat, throw_number
+        self.throws = THROWS if throws is None else throws
+        # How the object lies on the palm before the throw.
+        self.start_grasp = start_grasp(scenario, obj)
+        self.catch_parameters = fixed_catch_parameters(scenario, X_WG,
+                                                       catch_parameters)
+        # The throw's scenario; the catch's (at its plant step) once handed
+        # over at the release time.
+        self.scenario = scenario
+        self.simulator = None
+        self.diagram: EpisodeDiagram | None = None
+        self.handover: Handover | None = None
+        self.message = ""   # a failure's, once the episode failed
+        self.build_s = 0.0  # the wall time to build and initialise, [s]
+        self._recording = meshcat is not None
+
+    def build(self, scenario: Scenario) -> EpisodeDiagram:
+        """The episode's diagram for `scenario` (the throw's, or the
+        catch's at the handover)."""
+        return build_episode_diagram(
+            scenario, self.obj, ik=self.ik, X_WG=self.X_WG,
+            catch_parameters=self.catch_parameters,
+            mlp_features=self.mlp_features, meshcat=self.meshcat,
+            throw_number=self.throw_number)
+
+    def start(self) -> None:
+        """Stage 1: the episode to its release time: its throw kept in
+        `throws` gone on from (ThrowCache.resume), or else built, initialised
+        (Meshcat recording from the start), simulated to the release time
+        and handed over to the catch's plant step when the scenario has one
+        (`hand_over`), and kept. The scenario it goes on under is the
+        catch's from here."""
+        t0 = time.perf_counter()
+        key = self.throws.key(self.scenario, self.obj, self.throw_number,
+                              self.catch_parameters, self.meshcat)
+        handover = self.throws.resume(key, self.build, self.X_WG,
+                                      self.catch_parameters, self.ik)
+        if handover is None:
+            diagram = self.build(self.scenario)
+            if self.meshcat is not None:
+                self.meshcat.StartRecording(
+                    set_visualizations_while_recording=False)
+            simulator = initialize(diagram, self.scenario)
+            self.build_s = time.perf_counter() - t0
+            handover = hand_over(simulator, diagram, self.scenario,
+                                 self.build)
+            self.throws.keep(key, handover, self.ik)
+        else:
+            self.build_s = time.perf_counter() - t0
+        self.handover = handover
+        self.simulator = handover.simulator
+        self.diagram = handover.diagram
+        self.scenario = handover.scenario
+        self.message = handover.message
+
+    @property
+    def running(self) -> bool:
+        """Started, and not ended before the release time."""
+        return self.handover is not None and self.handover.running
+
+    def advance_to_release(self) -> Release:
+        """Stage 2: the episode at its release time (where a handover left
+        it already), and the object's state there."""
+        t = release_time(self.scenario)
+        if self.simulator.get_context().get_time() < t:  # not handed over
+            self.simulator.AdvanceTo(t)
+        state = self.diagram.station.Eval("object_state",
+                                          self.simulator.get_context())
+        return Release(t=t, object_state=np.asarray(state).copy())
+
+    def set_task(self, *, X_WG: RigidTransform | None = None,
+                 catch_parameters=None) -> None:
+        """Stage 3: the grasp pose and the catch parameters (h_catch,
+        h_down), [m], set in the running context (None leaves one as it
+        is). Drake handles the update events of a time at the start of the
+        next step, so the state machine's update at the release time reads
+        them."""
+        self.diagram.controller.set_task(
+            self.simulator.get_mutable_context(), X_WG=X_WG,
+            catch_parameters=catch_parameters)
+
+    def advance_to_outcome(self, t_final: float | None = None) -> str:
+        """Stage 4: on until the grasp monitor (or a failure) ends the
+        episode, or to t_final, [s]. Returns "" or the failure's message."""
+        self.message = advance_to_outcome(self.simulator, self.diagram,
+                                          self.scenario, t_final)
+        return self.message
+
+    def outcome(self) -> str:
+        """What the grasp monitor has decided so far: "running" until the
+        episode ends (result.read_outcome; a failure is not counted)."""
+        return read_outcome(self.diagram, self.simulator.get_context(),
+                            "")[0]
+
+    def stop_recording(self) -> None:
+        """Meshcat's recording of this episode stopped, once."""
+        if self._recording:
+            self._recording = False
+            self.meshcat.StopRecording()
+
+    def result(self) -> EpisodeResult:
+        """Stage 5: what the episode came to (result.read_result), with the
+        whole episode's logs; Meshcat's recording published."""
+        wall_s = time.perf_counter() - self._t0
+        if self._recording:
+            self.stop_recording()
+            self.meshcat.PublishRecording()
+        context = self.simulator.get_context()
+        logs = self.handover.logs(read_logs(self.diagram.loggers, context))
+        watching = self.X_WG is None
+        h = logs.params[:, -1] if logs.params.shape[1] else (None, None)
+        return read_result(
+            self.diagram, context, self.scenario, self.obj, self.start_grasp,
+            message=self.message,
+            h_catch=None if watching else float(h[0]),
+            h_down=None if watching else float(h[1]),
+            wall_s=wall_s, build_s=self.build_s, logs=logs)
+
+    def run(self, at_release=None) -> EpisodeResult:
+        """Every stage in turn; `at_release` as run_episode's."""
+        self.start()
+        if self.running:
+            if at_release is not None:
+                try:
+                    release = self.advance_to_release()
+                    planned = at_release(release.object_state, release.t)
+                except Exception:
+                    self.stop_recording()
+                    raise
+                if planned is not None:
+                    X_WG, parameters = planned
+                    self.set_task(X_WG=X_WG, catch_parameters=parameters)
+            self.advance_to_outcome()
+        return self.result()
+
+
+def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
+                X_WG: RigidTransform | None, catch_parameters=None,
+                mlp_features=None, meshcat=None,
+                throw_number: int = 1, at_release=None,
+                throws: ThrowCache | None = None) -> EpisodeResult:
+    """Throws `obj` and, unless X_WG is None (a watching throw), catches it:
+    an `Episode` run through its stages. Arguments as Episode's.
+
+    at_release: plans the catch while the object flies. Called once, at the
+    release time (before the state machine reads the grasp pose), with the
+    object's state then (13: quaternion wxyz, p_WO, w_WO, v_WO) and the
+    time; it returns the grasp pose X_WG and the catch parameters (h_catch,
+    h_down) that replace the ones given, None (the ones given stay: nothing
+    in the episode changes), or raises InputError (no catch planned: the
+    episode ends there and the error propagates). Requires catch_parameters
+    and an X_WG (any: it is replaced)."""
+    return Episode(scenario, obj, ik=ik, X_WG=X_WG,
+                   catch_parameters=catch_parameters,
+                   mlp_features=mlp_features, meshcat=meshcat,
+                   throw_number=throw_number, throws=throws
+                   ).run(at_release)
