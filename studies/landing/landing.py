@@ -16,11 +16,11 @@ catch goes to --out (JSONL); `--plot` draws the plot from the rows.
   ... --plot studies/landing/landing.png --out studies/landing/rows.jsonl
 """
 
-import regrasp_drake  # noqa: F401  (pins numerics before numpy)
-
+# regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
+# (regrasp_drake/numerics.py), so that results match across x86-64 machines.
+import regrasp_drake  # noqa: F401, I001 (first, see above)
 import argparse
 import json
-import sys
 import time
 
 import numpy as np
