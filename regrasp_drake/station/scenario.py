@@ -230,7 +230,8 @@ class CatchConfig:
     # catches, studies/landing); the shift above, chosen when any hold
     # counted, moves every target's rest by ±10 mm. Under it, 12 of 60
     # Table 1 and held-out pairs × six targets land in the target grasp on
-    # the first throw, 28 of 60 at 0 (benchmarks/regrasp_targets.py), [m].
+    # the first throw, 28 of 60 at 0 (both with the rest-to-rest lowering;
+    # docs/regrasp.md, The landing), [m].
     target_palm_toward_landing_end_m: float = 0.0
     # ... and the palm this far toward its heel, so that the object lands
     # nearer the fingers (studies/hand_design: on the 115 mm palm, with the
