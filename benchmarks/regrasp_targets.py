@@ -225,7 +225,15 @@ def main(argv=None) -> int:
     scenario_args.add(parser, target=False)
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
+    least_throws = 2 if "watch" in args.modes else 1
     try:
+        for flag, value, least in (("--workers", args.workers, 1),
+                                   ("--trials", args.trials, 1),
+                                   ("--max-throws", args.max_throws,
+                                    least_throws)):
+            if value < least:
+                raise InputError(f"{flag}: got {value}, expected an integer "
+                                 f">= {least}")
         targets = [Target.parse(t) for t in args.targets]
         base, _ = scenario_args.load(args)
     except InputError as e:
