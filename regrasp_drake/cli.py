@@ -273,6 +273,10 @@ def _cmd_apply(args) -> int:
 
 def _cmd_dataset(args) -> int:
     from regrasp_drake.world.objects import load_catalogue
+    if args.all_targets and args.target is not None:
+        raise InputError(f"--all-targets: got it with --target {args.target}, "
+                         "expected one of them (--all-targets makes keep and "
+                         "flip at -30, 0, +30 mm)")
     if args.backend == "process":
         _check_workers(args.workers)
     catalogue = load_catalogue()
@@ -282,12 +286,19 @@ def _cmd_dataset(args) -> int:
         if name not in catalogue:
             raise InputError(f"--objects: got {name!r}, expected a catalogue "
                              "object (see `regrasp-drake objects`)")
+    if args.all_targets:
+        from regrasp_drake.learning.dataset import generate_targets  # torch
+        made = generate_targets(names, args.out, workers=args.workers,
+                                backend=args.backend, scenario=args.scenario,
+                                catch_points=args.catch_points)
+        print(json.dumps({key: _dataset_summary(p) for key, p in made.items()},
+                         indent=1))
+        return 0
     from regrasp_drake.learning.dataset import generate  # torch: after
     provenance = generate(names, args.out, workers=args.workers,
                           backend=args.backend, scenario=args.scenario,
                           catch_points=args.catch_points)
-    print(json.dumps({k: v for k, v in provenance.items() if k != "scenario"},
-                     indent=1))
+    print(json.dumps(_dataset_summary(provenance), indent=1))
     return 0
 
 
@@ -526,6 +537,11 @@ def _add_learning_commands(sub) -> None:
     p.set_defaults(func=_cmd_apply)
 
 
+def _dataset_summary(provenance: dict) -> dict:
+    """A data set's provenance without its scenario's text, to print."""
+    return {k: v for k, v in provenance.items() if k != "scenario"}
+
+
 def _add_data_commands(sub) -> None:
     """dataset, train, table1, train-flight and train-offset: data sets,
     networks and the paper's table."""
@@ -541,11 +557,17 @@ def _add_data_commands(sub) -> None:
     p.add_argument("--catch-points", type=int, default=1, metavar="K",
                    help="catch points per object, each with its own map and "
                         "label (default 1, as the shipped data set)")
+    p.add_argument("--all-targets", action="store_true",
+                   help="one data set per grasp target the learned planner "
+                        "trains on (keep and flip at -30, 0, +30 mm), in "
+                        "--out/dataset_<kind><mm> (dataset_flip+0, ...), "
+                        "their entries on one pool of workers")
     p.add_argument("--out", type=Path, metavar="DIR",
                    default=InOutDir("dataset"),
                    help="output directory; an existing data set is resumed "
                         "(default dataset/ in --out-dir; the shipped one is "
-                        "models/dataset)")
+                        "models/dataset); with --all-targets, the directory "
+                        "of the targets' data sets")
     _add_out_dir_arg(p)
     p.set_defaults(func=_cmd_dataset)
 

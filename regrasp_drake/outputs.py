@@ -64,7 +64,7 @@ OUTPUTS = {
     "train-offset": {"out": "offset prior"},
 }
 # What the directories a command makes hold.
-DIRECTORIES = ("data set", "maps", "outputs")
+DIRECTORIES = ("data set", "data sets", "maps", "outputs")
 # The arguments that name a file or directory a command reads (and `apply`'s
 # --library); --out-dir holds the outputs given no path.
 INPUTS = ("object_file", "scenario", "weights", "flight_model", "data",
@@ -106,6 +106,8 @@ def _outputs(args) -> dict:
     if getattr(args, "out_dir", None) is not None:
         add("--out-dir", args.out_dir, "outputs")
     for dest, holds in OUTPUTS.get(args.command, {}).items():
+        if holds == "data set" and getattr(args, "all_targets", False):
+            holds = "data sets"  # --out holds one data set per target
         if getattr(args, dest, None) is not None:
             add("--" + dest.replace("_", "-"), getattr(args, dest), holds)
     return outputs
@@ -124,6 +126,10 @@ def _beside(args, path, holds) -> dict:
     if holds == "flight model":
         from regrasp_drake.learning.flight_predictor import report_path
         return {"its report": (report_path(path), "json")}
+    if holds == "data sets":
+        from regrasp_drake.learning.dataset import TARGET_SETS, target_dir_name
+        return {target_dir_name(t): (Path(path) / target_dir_name(t),
+                                     "data set") for t in TARGET_SETS}
     if holds == "maps":
         from regrasp_drake.learning.table1 import map_paths, object_names
         files = {}

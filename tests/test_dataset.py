@@ -16,11 +16,16 @@ from pathlib import Path
 import numpy as np
 
 from regrasp_drake.errors import InputError
-from regrasp_drake.learning.dataset import generate
+from regrasp_drake.learning.dataset import generate, generate_targets
 from regrasp_drake.learning.dataset_files import FEATURE_NAMES, load_map
 from regrasp_drake.learning.labels import SHAPE, label_cell, robustness
 from regrasp_drake.learning.provenance import scenario_text
-from regrasp_drake.station.scenario import load_scenario, scenario_yaml
+from regrasp_drake.planning.grasp import Target
+from regrasp_drake.station.scenario import (
+    load_scenario,
+    scenario_yaml,
+    with_target,
+)
 
 REPO = Path(__file__).parents[1]
 OBJECTS = ["table1-row2", "table1-row1"]
@@ -156,6 +161,41 @@ class OldPhysicsTest(unittest.TestCase):
                          "0123456789abcdef\n")
         self.assertEqual((old / "cells" / "table1-row2.jsonl").read_text(),
                          '{"cell": [0, 0]}\n')
+
+
+class TargetSetsTest(unittest.TestCase):
+    """Several targets' data sets in one run (dataset --all-targets): each
+    the data set `generate` makes under its target, and a directory of one
+    target not resumed under another."""
+
+    def test_one_run_makes_each_targets_data_set(self):
+        keep, flip = Target("keep"), Target("flip")
+        with tempfile.TemporaryDirectory() as d:
+            root = Path(d)
+            made = generate_targets(OBJECTS[:1], root, targets=(keep, flip),
+                                    workers=2, only=COARSE[:1],
+                                    progress=False)
+            self.assertEqual(sorted(made), ["dataset_flip+0", "dataset_keep+0"])
+            alone = generate(OBJECTS[:1], root / "alone", workers=1,
+                             only=COARSE[:1], progress=False,
+                             scenario=with_target(load_scenario(), flip))
+            self.assertEqual(made["dataset_flip+0"]["scenario"],
+                             alone["scenario"])
+            self.assertIn("target: keep", made["dataset_keep+0"]["scenario"])
+            for rows in ("alone", "dataset_flip+0"):
+                line = json.loads((root / rows / "cells" / f"{OBJECTS[0]}.jsonl")
+                                  .read_text())
+                line.pop("wall_s")
+                if rows == "alone":
+                    first = line
+            self.assertEqual(line, first)
+            # The keep set moved to flip's place: refused before any work.
+            shutil.rmtree(root / "dataset_flip+0")
+            (root / "dataset_keep+0").rename(root / "dataset_flip+0")
+            with self.assertRaises(InputError) as e:
+                generate_targets(OBJECTS[:1], root, targets=(flip,),
+                                 only=COARSE[:1], progress=False)
+            self.assertIn("regrasp.target is", str(e.exception))
 
 
 class GenerateTest(unittest.TestCase):

@@ -18,6 +18,7 @@ the entries assembled into samples.csv, maps.npz and provenance.json
 (learning/dataset_files.py, which lists them).
 """
 
+import contextlib
 import csv
 import hashlib
 import json
@@ -55,9 +56,10 @@ from regrasp_drake.parameter_space import (
     cell_parameters,
     cells,
 )
+from regrasp_drake.planning.grasp import Target
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.progress import bar as progress_bar
-from regrasp_drake.station.scenario import load_scenario
+from regrasp_drake.station.scenario import load_scenario, with_target
 from regrasp_drake.station.throw import free_time_s
 from regrasp_drake.throw_catch import plan_catches, watch
 from regrasp_drake.world.objects import CATALOGUE_PATH, resolve_object
@@ -157,10 +159,23 @@ def _generate(names, out_dir, *, workers, backend, scenario, progress,
               only, catch_points) -> dict:
     """generate's work, under the data set's lock."""
     check_same_scenario(out_dir, scenario)
+    tasks = _tasks(names, out_dir, scenario, only)
+    wall_s = _run(tasks, workers, backend, progress)
+    return _finish(names, out_dir, scenario=scenario, wall_s=wall_s,
+                   workers=workers, backend=backend,
+                   catch_points=catch_points, computed=len(tasks))
+
+
+def _tasks(names, out_dir, scenario, only) -> list:
+    """The entries of out_dir not yet computed, as tasks of _object_task."""
     (out_dir / "cells").mkdir(parents=True, exist_ok=True)
-    todo = [n for n in names if not _object_done(out_dir, n, only)]
+    return [(scenario, n, str(out_dir), only) for n in names
+            if not _object_done(out_dir, n, only)]
+
+
+def _run(tasks, workers, backend, progress) -> float:
+    """Computes the tasks (each writes its entry's files); their wall time."""
     start = time.perf_counter()
-    tasks = [(scenario, n, str(out_dir), only) for n in todo]
     if tasks:
         runner = _run_ray if backend == "ray" else _run_processes
         with progress_bar(len(tasks), "data set", "entries",
@@ -168,15 +183,71 @@ def _generate(names, out_dir, *, workers, backend, scenario, progress,
             for name in runner(tasks, workers):
                 shown.set_postfix_str(name)
                 shown.update()
-    wall_s = time.perf_counter() - start
-    provenance = assemble(names, out_dir, scenario=scenario,
-                          wall_s=wall_s, workers=workers, backend=backend,
-                          catch_points=catch_points, computed=len(tasks))
+    return time.perf_counter() - start
+
+
+def _finish(names, out_dir, **run) -> dict:
+    """Assembles out_dir's files; its provenance."""
+    provenance = assemble(names, out_dir, **run)
     # provenance.json holds the scenario and the models' digest now
     # (check_same_scenario).
     (out_dir / "scenario.yaml").unlink(missing_ok=True)
     (out_dir / MODELS_FILE).unlink(missing_ok=True)
     return provenance
+
+
+# The grasp targets of the data sets the learned planner trains on (issue
+# 55): keep and flip, the palm at -30, 0 and +30 mm along the axis.
+TARGET_SETS = tuple(Target(kind, offset) for kind in ("keep", "flip")
+                    for offset in (-30.0, 0.0, 30.0))
+
+
+def target_dir_name(target: Target) -> str:
+    """A target's data set directory under a root: dataset_flip+0,
+    dataset_keep-30, ..."""
+    return f"dataset_{target.kind}{target.offset_mm:+.0f}"
+
+
+def generate_targets(names: list[str], root: Path, *, targets=TARGET_SETS,
+                     workers: int = 1, backend: str = "process",
+                     scenario=None, progress: bool = True, only=None,
+                     catch_points: int = 1) -> dict:
+    """`generate` under each target at once: the data set of target t in
+    root/target_dir_name(t), its scenario `scenario` aiming for t (its
+    throw too: with_target). The entries of every target share one pool
+    of workers (or Ray), so that no worker idles between targets; each
+    data set is locked, checked (a data set begun under another target
+    or scenario is refused before anything runs), resumed and assembled as
+    `generate` does it. Returns each data set's provenance by directory
+    name. only: as for generate."""
+    if backend not in ("process", "ray"):
+        raise InputError(f"--backend: got {backend!r}, expected process or ray")
+    if workers < 1:
+        raise InputError(f"--workers: got {workers}, expected >= 1")
+    if not 1 <= catch_points <= 5:
+        raise InputError(f"--catch-points: got {catch_points}, expected 1 to 5")
+    names = entry_names(names, catch_points)
+    base = scenario or load_scenario()
+    sets = {target_dir_name(t): (Path(root) / target_dir_name(t),
+                                 with_target(base, t)) for t in targets}
+    with contextlib.ExitStack() as locks:
+        for out_dir, _ in sets.values():
+            out_dir.mkdir(parents=True, exist_ok=True)
+            locks.enter_context(atomic_io.exclusive(
+                out_dir / LOCK_FILE, what=f"data set {out_dir}", wait=False))
+        for out_dir, target_scenario in sets.values():
+            check_same_scenario(out_dir, target_scenario)
+        todo = {key: _tasks(names, out_dir, target_scenario, only)
+                for key, (out_dir, target_scenario) in sets.items()}
+        wall_s = _run([t for tasks in todo.values() for t in tasks],
+                      workers, backend, progress)
+        # Each data set records the whole run's wall time, and how many of
+        # its entries the run computed.
+        return {key: _finish(names, out_dir, scenario=target_scenario,
+                             wall_s=wall_s, workers=workers, backend=backend,
+                             catch_points=catch_points,
+                             computed=len(todo[key]))
+                for key, (out_dir, target_scenario) in sets.items()}
 
 
 def _run_processes(tasks, workers):
