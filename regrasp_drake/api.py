@@ -96,7 +96,11 @@ class Run:
         """The learning phase's report, or the one throw's summary; JSON."""
         if self.learning is not None:
             return self.learning.as_dict()
-        return self.episode.summary() | (
+        # Who chose the cell: the caller (`catch`), or, for `apply`, who
+        # chose it when it was learned (None: a library from before that
+        # was recorded).
+        chosen_by = "given" if self.entry is None else self.entry.chosen_by
+        return self.episode.summary() | {"chosen_by": chosen_by} | (
             {} if self.plan is None else {"plan": self.plan.as_dict()})
 
     def save_replay(self, path) -> str:

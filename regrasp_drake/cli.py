@@ -308,14 +308,25 @@ def _cmd_train(args) -> int:
                          ">= 1")
     if args.seed < 0:
         raise InputError(f"--seed: got {args.seed}, expected an integer >= 0")
-    from regrasp_drake.learning.dataset_files import load_training_data  # torch
+    if args.offset_mm is not None and args.target is None:
+        raise InputError(f"--offset-mm: got {args.offset_mm:g} without "
+                         "--target, expected --target keep, flip or turn "
+                         "beside it")
     from regrasp_drake.paths import MODELS_DIR
-    data = args.data or MODELS_DIR / "dataset"
-    load_training_data(data)  # refuse a bad data set before any training
+    data = args.data
+    if data is None and args.target is not None:
+        from regrasp_drake.learning.dataset import target_dir_name
+        from regrasp_drake.planning.grasp import Target
+        data = MODELS_DIR / target_dir_name(Target(args.target,
+                                                   args.offset_mm or 0.0))
+    data = data or MODELS_DIR / "dataset"
     import torch
-
-    from regrasp_drake.learning.train import train
     torch.set_num_threads(1)
+    if outputs.trains_planner(args):
+        return _train_planner(args, data)
+    from regrasp_drake.learning.dataset_files import load_training_data
+    load_training_data(data)  # refuse a bad data set before any training
+    from regrasp_drake.learning.train import train
     out = args.out
     report_json, curve_png = outputs.train_files(out)
     report = train(data, out, seed=args.seed, curve_png=curve_png,
@@ -325,6 +336,8 @@ def _cmd_train(args) -> int:
         report["repeated_splits"] = repeated_splits(
             data, range(args.seed, args.seed + args.splits))
         _write_json(report_json, report)
+    if args.json is not None:
+        _write_json(args.json, report)
     print(json.dumps({k: v for k, v in report.items() if k != "split"},
                      indent=1))
     if not report["held_out"]:
@@ -333,6 +346,25 @@ def _cmd_train(args) -> int:
               "held-out figures)", file=sys.stderr)
     print(f"weights: {out}; report: {report_json}; curve: {curve_png}",
           file=sys.stderr)
+    return 0
+
+
+def _train_planner(args, data) -> int:
+    """train --network planner: the learned planner judged on data's maps
+    (by geometry and by object, against the paper's network, the best
+    constant cell and the ceiling), then trained on all of them."""
+    from regrasp_drake.learning.planner import PlannerData, train_planner
+    from regrasp_drake.progress import bar as progress_bar
+    maps = PlannerData.load(data)  # refuse a bad data set before training
+    splits = len(set(maps.geometries)) + len(set(maps.objects))
+    with progress_bar(splits, "planner", "splits") as shown:
+        report = train_planner(data, args.out, seed=args.seed, maps=maps,
+                               progress=shown.update)
+    if args.json is not None:
+        _write_json(args.json, report)
+    print(json.dumps(report, indent=1))
+    print(f"planner: {args.out}" + (f"; report: {args.json}" if args.json
+                                    else ""), file=sys.stderr)
     return 0
 
 
@@ -571,15 +603,36 @@ def _add_data_commands(sub) -> None:
     _add_out_dir_arg(p)
     p.set_defaults(func=_cmd_dataset)
 
-    p = sub.add_parser("train", help="train the catch network on a data set")
+    p = sub.add_parser("train", help="train the catch network, or the "
+                                     "learned planner of a grasp target, on "
+                                     "a data set")
+    p.add_argument("--target", choices=("keep", "flip", "turn"),
+                   help="the grasp target whose data set to learn from "
+                        "(models/dataset_<kind><mm>, e.g. dataset_flip+0); "
+                        "the learned planner by default")
+    p.add_argument("--offset-mm", type=float, metavar="MM",
+                   help="with --target: the target's offset, mm (default 0)")
+    p.add_argument("--network", choices=("planner", "paper"),
+                   help="planner: the learned planner (a success model over "
+                        "every cell; the default under --target), judged by "
+                        "geometry and by object against the paper's network, "
+                        "the best constant cell and each map's best; paper: "
+                        "the paper's 5-13-2 network (the default otherwise)")
     p.add_argument("--data", type=Path, metavar="DIR",
-                   help="data set directory (default models/dataset)")
+                   help="data set directory (default models/dataset, or the "
+                        "target's)")
     p.add_argument("--out", type=Path, metavar="F",
-                   default=InOutDir("catch_mlp.pt"),
-                   help="weights file, with its report F.json and training "
-                        "curve F_training.png beside it (default "
-                        "catch_mlp.pt in --out-dir; the shipped network is "
-                        "models/catch_mlp.pt)")
+                   default=InOutDir("{trained}"),
+                   help="the network's weights file, with its report F.json "
+                        "and training curve F_training.png beside it "
+                        "(default catch_mlp.pt in --out-dir; the shipped "
+                        "network is models/catch_mlp.pt), or the planner's "
+                        "file (default planner_<kind><mm>.json in --out-dir; "
+                        "the shipped ones are in models/)")
+    p.add_argument("--json", type=Path, metavar="F",
+                   help="also write the report here (the planner's: for "
+                        "by_geometry and by_object, the success rates of "
+                        "learned, paper_network, best_constant, ceiling)")
     _add_out_dir_arg(p)
     p.add_argument("--seed", type=int, default=0,
                    help="seed of the split and the initial weights")

@@ -18,7 +18,8 @@ from regrasp_drake.errors import InputError, check_output_path, quote
 class InOutDir:
     """The default of an output argument: a file or directory name under
     the command's --out-dir (filled in by fill_defaults; `{entry}` stands
-    for the map's entry, grid_entry). Not a str: argparse would convert
+    for the map's entry, grid_entry; `{trained}` for what train trains,
+    trained_name). Not a str: argparse would convert
     it with the argument's type."""
 
     def __init__(self, name: str):
@@ -34,6 +35,24 @@ def grid_entry(args) -> str:
         raise InputError(f"--catch-point: got {args.catch_point}, expected "
                          ">= 1")
     return obj.name + ("" if args.catch_point == 1 else f"@{args.catch_point}")
+
+
+def trains_planner(args) -> bool:
+    """Whether `train` trains the learned planner (--network planner, the
+    default under --target) rather than the paper's network."""
+    if getattr(args, "command", None) != "train":
+        return False
+    network = args.network or ("planner" if args.target else "paper")
+    return network == "planner"
+
+
+def trained_name(args) -> str:
+    """What `train` writes given no --out: catch_mlp.pt (the paper's
+    network), or the target's planner, planner_flip+0.json, …"""
+    if not trains_planner(args):
+        return "catch_mlp.pt"
+    from regrasp_drake.learning.planner import planner_file_name
+    return planner_file_name(args.target, args.offset_mm or 0.0)
 
 
 def train_files(out: Path) -> tuple[Path, Path]:
@@ -57,7 +76,7 @@ OUTPUTS = {
                 "plot": "plot"},
     "apply": {"html": "replay", "json": "json"},
     "dataset": {"out": "data set"},
-    "train": {"out": "weights"},
+    "train": {"out": "weights", "json": "json"},
     "table1": {"library": "library", "json": "json", "markdown": "table",
                "maps_dir": "maps"},
     "train-flight": {"out": "flight model"},
@@ -83,8 +102,11 @@ def fill_defaults(args) -> None:
         if dest == "maps_dir" and args.no_maps:
             setattr(args, dest, None)
             continue
-        name = (value.name.format(entry=grid_entry(args))
-                if "{entry}" in value.name else value.name)
+        name = value.name
+        if "{entry}" in name:
+            name = name.format(entry=grid_entry(args))
+        if "{trained}" in name:
+            name = name.format(trained=trained_name(args))
         setattr(args, dest, out_dir / name)
         used |= dest in OUTPUTS.get(args.command, {})
     if "out_dir" in vars(args):
@@ -108,6 +130,8 @@ def _outputs(args) -> dict:
     for dest, holds in OUTPUTS.get(args.command, {}).items():
         if holds == "data set" and getattr(args, "all_targets", False):
             holds = "data sets"  # --out holds one data set per target
+        if holds == "weights" and trains_planner(args):
+            holds = "planner"
         if getattr(args, dest, None) is not None:
             add("--" + dest.replace("_", "-"), getattr(args, dest), holds)
     return outputs
@@ -193,6 +217,8 @@ _OURS = {
     "diagram": ("a Graphviz digraph", lambda path: _diagram_reason(path)),
     "offset prior": ("an offset prior",
                      lambda path: _refusal(_load_offset_prior, path)),
+    "planner": ("a learned planner",
+                lambda path: _refusal(_load_planner, path)),
 }
 
 
@@ -238,6 +264,11 @@ def _load_json(path):
 def _load_library(path):
     from regrasp_drake.learning.library import load_library
     return load_library(path)
+
+
+def _load_planner(path):
+    from regrasp_drake.learning.planner import SuccessModel
+    return SuccessModel.load(path)
 
 
 def _load_weights(path):

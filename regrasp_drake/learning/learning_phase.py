@@ -83,6 +83,7 @@ from regrasp_drake.learning.learning_result import (
     LearningResult,
     NoCatchPoint,
 )
+from regrasp_drake.learning.planner import Planner, load_planner
 from regrasp_drake.learning.search import (
     SEARCHES,
     Search,
@@ -164,8 +165,15 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
           meshcat=None, on_episode=None, progress=sys.stderr,
           flight_predictor=None, at_release: bool = False,
           search: str = "wavefront", prior_maps=None,
-          prior_features=None, offset_prior=None) -> LearningResult:
+          prior_features=None, offset_prior=None,
+          planner: Planner | None = None) -> LearningResult:
     """The learning phase on one object (see the module's docstring).
+
+    planner: who picks the search's first cell (learning/planner.py): None,
+    the shipped planner of the scenario's target (`load_planner`: the
+    chooser that won its judging by geometry; the paper's network for `any`
+    and where no planner is shipped); `planner.PAPER_NETWORK`, the paper's
+    network. Every attempt says who chose its cell (`chosen_by`).
 
     search: the order of the cells after the network's, "wavefront" (the
     paper's) or "map-prior" (see learning/search.py). prior_maps: the map
@@ -198,7 +206,8 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
     phase = _Phase(scenario, obj, model, ik or ArmIk(scenario.directives), prior=prior,
                    at_release=at_release, meshcat=meshcat,
                    on_episode=on_episode, progress=progress,
-                   offset_prior=offset_prior)
+                   offset_prior=offset_prior,
+                   planner=planner or load_planner(target_of(scenario)))
     # Throw 1 watches (or the flight is predicted); the offline stage plans
     # the catch and the network's cell starts the search. At release, throw
     # 1 plans its own catch, and starts the search, when it lets go.
@@ -276,8 +285,9 @@ class _Phase:
 
     def __init__(self, scenario: Scenario, obj: ObjectSpec, model: CatchMlp,
                  ik: ArmIk, *, prior, at_release: bool, meshcat, on_episode,
-                 progress, offset_prior=None):
+                 progress, planner: Planner, offset_prior=None):
         self.scenario, self.obj, self.model, self.ik = scenario, obj, model, ik
+        self.planner = planner
         self.prior = prior  # (maps, features) of the map prior, or None
         self.at_release = at_release
         self.meshcat, self.on_episode, self.progress = (meshcat, on_episode,
@@ -365,12 +375,13 @@ class _Phase:
             plan = shifted_along_axis(plan, self.palm_shift_m, self.ik) or plan
         self.plan = plan
         self.raw, self.prediction = predict(self.model, self.features)
-        start, reach = feasible_start(nearest_cell(*self.prediction), self.ik,
-                                      plan)
+        first = self.planner.first_cell(self.obj, plan,
+                                        nearest_cell(*self.prediction))
+        start, reach = feasible_start(first, self.ik, plan)
         self.report(f"catch point at t = {plan.catch_point.t_s:.3f} s, "
                     f"v_catch {plan.catch_point.v_catch:.3f} m/s; network: "
-                    f"h_catch {self.raw[0]:.3f} m, h_down {self.raw[1]:.3f} m "
-                    f"-> start cell {start}")
+                    f"h_catch {self.raw[0]:.3f} m, h_down {self.raw[1]:.3f} m;"
+                    f" {self.planner.name} -> start cell {start}")
         if not all(reach):
             self.report(f"the arm lowers the hand to h_down "
                         f"{H_DOWN_VALUES[reach.index(True)]:.2f} m at most "
@@ -446,7 +457,9 @@ class _Phase:
                 if correction.how in ("shifted", "replanned", "kept")
                 else None),
             achieved_grasp=result.achieved_grasp,
-            grasp_error=result.grasp_error, plan=self.plan))
+            grasp_error=result.grasp_error, plan=self.plan,
+            chosen_by=(self.planner.name if cell == self.search.start
+                       else "search")))
         how = "" if result.success else f" ({self.attempts[-1].ending})"
         self.report(f"throw {self.throws}: cell {cell} (h_catch {h_catch:.2f}"
                     f" m, h_down {h_down:.2f} m): {result.outcome}{how}, "
@@ -553,6 +566,7 @@ class _Phase:
                 q_grasp=[float(x) for x in plan.q_grasp], side=plan.side,
                 h_catch=last.h_catch, h_down=last.h_down,
                 cell=list(last.cell), throws=self.throws,
+                chosen_by=last.chosen_by,
                 search="wavefront" if self.prior is None else "map-prior",
                 mode=("at-release" if self.at_release else
                       "first-throw" if first_throw else "watch"))
@@ -575,6 +589,7 @@ class _Phase:
                         else self.first_plan),
             at_release=self.at_release,
             search="wavefront" if self.prior is None else "map-prior",
+            planner=self.planner.name,
             target=target_of(self.scenario).as_dict(),
             start_grasp=start_grasp(self.scenario, self.obj).as_dict())
 

@@ -49,6 +49,9 @@ class Attempt:
     grasp_error: dict | None = None
     # The plan the throw waited under (throw_catch.CatchPlan; not reported).
     plan: CatchPlan | None = None
+    # Who chose its cell: the search's first cell's chooser
+    # (learning/planner.py PLANNERS) or "search".
+    chosen_by: str | None = None
 
     @property
     def caught(self) -> bool:
@@ -63,7 +66,7 @@ class Attempt:
              "grasp_error": self.grasp_error,
              "sim_time_s": round(self.sim_time_s, 4),
              "wall_s": round(self.wall_s, 3), "message": self.message,
-             "ending": self.ending}
+             "ending": self.ending, "chosen_by": self.chosen_by}
         if self.release_correction is not None:
             d["release_correction"] = self.release_correction
         return d
@@ -95,6 +98,8 @@ class LearningResult:
     first_plan: CatchPlan | None = None  # the predicted flight's, if replaced
     at_release: bool = False  # each throw planned when it released the object
     search: str = "wavefront"  # the search's rule: one of search.SEARCHES
+    # Who chose the search's first cell (learning/planner.py PLANNERS).
+    planner: str = "paper_network"
     target: dict | None = None  # the scenario's (planning/grasp.Target)
     start_grasp: dict | None = None  # how the object lay before the throw
 
@@ -129,7 +134,7 @@ class LearningResult:
                       else episode_dict(self.watched)),
             "first_throw": self.first_throw,
             "at_release": self.at_release,
-            "search": self.search,
+            "search": self.search, "planner": self.planner,
             "replanned": self.replanned,
             "first_plan": (None if self.first_plan is None
                            else plan_dict(self.first_plan)),

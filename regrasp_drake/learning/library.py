@@ -77,7 +77,10 @@ _FEATURES = ("h_cm", "r_cm", "d_obj", "v_conv")
 _CATCH_POINT = ("t_s", "p_WO", "axis_W", "v_catch", "tilt")
 MODES = ("watch", "first-throw", "at-release")
 # Fields an entry may lack (older libraries): they read as None.
-_OPTIONAL = ("mode", "search")
+_OPTIONAL = ("mode", "search", "chosen_by")
+# Who can have chosen a learned cell (learning/planner.py PLANNERS, then the
+# search).
+CHOSEN_BY = ("learned", "best_constant", "paper_network", "search")
 
 
 @dc.dataclass
@@ -99,6 +102,9 @@ class LearnedEntry:
     throws: int
     mode: str | None = None    # one of MODES; None: not recorded
     search: str | None = None  # wavefront or map-prior; None: not recorded
+    # Who chose the catching cell (learning/planner.py PLANNERS, or
+    # "search"); None: not recorded.
+    chosen_by: str | None = None
 
     @property
     def X_WG(self) -> RigidTransform:
@@ -244,7 +250,8 @@ def _entry(where: str, raw) -> LearnedEntry:
     # First-throw mode can catch on throw 1 (no watching throw).
     if not (type(raw["throws"]) is int and raw["throws"] >= 1):
         raise field_error(f"{where}.throws", raw["throws"], "an integer >= 1")
-    for n, allowed in (("mode", MODES), ("search", SEARCHES)):
+    for n, allowed in (("mode", MODES), ("search", SEARCHES),
+                       ("chosen_by", CHOSEN_BY)):
         if raw.get(n) is not None and raw[n] not in allowed:
             raise field_error(f"{where}.{n}", raw[n],
                               f"one of {list(allowed)} (or absent)")
