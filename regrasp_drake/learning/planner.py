@@ -43,7 +43,11 @@ from regrasp_drake.learning.dataset_files import FEATURE_NAMES, read_plan
 from regrasp_drake.learning.labels import SHAPE, label_cell
 from regrasp_drake.learning.provenance import load_provenance
 from regrasp_drake.learning.search import load_prior_maps
+from regrasp_drake.learning.train import fit
 from regrasp_drake.parameter_space import cell_parameters, nearest_cell
+from regrasp_drake.paths import MODELS_DIR
+from regrasp_drake.station.mlp_system import CatchMlp
+from regrasp_drake.station.scenario import load_scenario, target_of
 from regrasp_drake.world.objects import ObjectSpec, resolve_object
 
 # The model's inputs beside the cell: the paper's five; the object's mass
@@ -278,8 +282,6 @@ def best_constant(caught: np.ndarray) -> tuple[int, int]:
 def _paper_network_cells(data: PlannerData, train, held_out, seed) -> list:
     """The paper's network trained on the training maps' labels (its
     split's early stopping on a tenth of them), its cells for held_out."""
-    from regrasp_drake.learning.train import fit
-    from regrasp_drake.station.mlp_system import CatchMlp
     labelled = [k for k in train if data.labels[k] is not None]
     order = np.random.default_rng(seed).permutation(labelled)
     n_val = max(1, len(order) // 10)
@@ -361,7 +363,6 @@ def train_planner(data_dir: Path, out: Path, *, seed: int = 0,
 
 def _target(provenance: dict) -> dict:
     """The target grasp a data set's scenario aims for."""
-    from regrasp_drake.station.scenario import load_scenario, target_of
     target = target_of(load_scenario(text=provenance["scenario"]))
     return {"kind": target.kind, "offset_mm": target.offset_mm}
 
@@ -413,7 +414,6 @@ def load_planner(target, models_dir: Path | None = None) -> Planner:
     file in models_dir (default the shipped models), or the paper's network
     when there is none (the `any` target: its one cell that catches every
     training map is the paper network's finding, docs/maps-and-network.md)."""
-    from regrasp_drake.paths import MODELS_DIR
     path = Path(models_dir or MODELS_DIR) / planner_file_name(
         target.kind, target.offset_mm)
     if target.kind == "any" or not path.exists():
