@@ -16,8 +16,8 @@ numerics.pin()
 
 __version__ = "0.1.0"
 
-__all__ = ["Run", "Target", "apply", "catch", "learn", "load_object",
-           "load_scenario", "regrasp"]
+__all__ = ["Episode", "Run", "Target", "apply", "catch", "learn",
+           "load_object", "load_scenario", "regrasp"]
 
 
 def __getattr__(name: str):

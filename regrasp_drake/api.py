@@ -16,6 +16,10 @@ Each returns a `Run`. Its episodes are drawn on `meshcat` (Drake's
 StartMeshcat() in a notebook, or any Meshcat; default: a private one on
 loopback, for the replay) unless replay=False, and recorded, so that
 `Run.save_replay` writes them as one self-contained HTML file.
+
+`Episode` is one throw (and its catch) held between its stages, for a
+caller who drives an episode itself: start, advance to the release, set
+the task, advance to the outcome, read the result.
 """
 
 import dataclasses as dc
@@ -24,6 +28,8 @@ from pathlib import Path
 
 import torch
 
+# rd.Episode: one throw held between its stages (episode/episode.py).
+from regrasp_drake.episode.episode import Episode as Episode
 from regrasp_drake.episode.result import EpisodeResult
 from regrasp_drake.errors import InputError, field_error
 from regrasp_drake.learning.flight_predictor import FlightPredictor

@@ -179,13 +179,13 @@ class RestPoseTest(unittest.TestCase):
         episode = build_episode_diagram(scenario, obj, ik=ik, X_WG=None)
         station = episode.station
         finer = build_episode_diagram(with_time_step(scenario, 0.00025), obj,
-                                      ik=ik, X_WG=None).station
+                                      ik=ik, X_WG=None)
         np.testing.assert_array_equal(
-            station.X_WO_initial.GetAsMatrix34(),
+            episode.X_WO_initial.GetAsMatrix34(),
             finer.X_WO_initial.GetAsMatrix34())
         # It rolled about its own axis (the palm's y) to put its centre of
         # mass low.
-        tilt = station.X_WO_initial.rotation().ToRollPitchYaw().pitch_angle()
+        tilt = episode.X_WO_initial.rotation().ToRollPitchYaw().pitch_angle()
         self.assertGreater(abs(tilt), 0.3)
         simulator = initialize(episode, scenario)
         plant = station.plant

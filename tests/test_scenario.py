@@ -252,7 +252,7 @@ class OneOfEverythingTest(unittest.TestCase):
             plant.GetMyContextFromRoot(simulator.get_context()),
             station.object_body)
         self.assertLess(np.linalg.norm(
-            X_WO.translation() - station.X_WO_initial.translation()), 0.01)
+            X_WO.translation() - episode.X_WO_initial.translation()), 0.01)
 
     def test_station_builds_with_the_network(self):
         episode = build_episode_diagram(

@@ -31,6 +31,7 @@ from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
 from regrasp_drake.station.catch_state_machine import Phase
 from regrasp_drake.station.scenario import load_scenario
+from regrasp_drake.station.start_pose import start_poses
 from regrasp_drake.station.station import add_station, make_arm_controller
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world import robot
@@ -252,8 +253,8 @@ class TestStationPorts(unittest.TestCase):
         plant_context = plant.GetMyMutableContextFromRoot(context)
         q0 = throw.start_q(self.scenario.throw)
         plant.SetPositions(plant_context, self.station.arm, q0)
-        plant.SetFreeBodyPose(plant_context, self.station.object_body,
-                              self.station.X_WO_initial)
+        X_WO = start_poses(self.scenario, self.obj)[1]
+        plant.SetFreeBodyPose(plant_context, self.station.object_body, X_WO)
         self.diagram.GetInputPort("arm_desired_state").FixValue(
             context, np.concatenate([q0, np.zeros(6)]))
         self.diagram.GetInputPort("arm_desired_acceleration").FixValue(
@@ -269,7 +270,7 @@ class TestStationPorts(unittest.TestCase):
             plant_context, self.station.object_body.model_instance()))
         # Still lying on the palm where it was laid, not fallen off.
         np.testing.assert_allclose(
-            state[4:7], self.station.X_WO_initial.translation(), atol=0.01)
+            state[4:7], X_WO.translation(), atol=0.01)
         np.testing.assert_array_equal(
             self.station.Eval("object_state", context), state)
 

@@ -15,6 +15,7 @@ from regrasp_drake.episode import episode
 from regrasp_drake.episode.episode import THROWS, ThrowCache, run_episode
 from regrasp_drake.episode.result import Logs
 from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station.catch_state_machine import ThrowPerturbation
 from regrasp_drake.station.scenario import ThrowNoise, load_scenario
 from regrasp_drake.throw_catch import plan_catch
 from regrasp_drake.world.objects import resolve_object
@@ -106,20 +107,18 @@ class ThrowCacheTest(unittest.TestCase):
     def test_noisy_throws_are_their_own(self):
         noisy = dc.replace(self.scenario, throw=dc.replace(
             self.scenario.throw, noise=ThrowNoise(0.002, 0.03, 1)))
-        keys = {THROWS.key(noisy, self.obj, n, (0.28, -0.12), None)
-                for n in (1, 2)}
-        self.assertEqual(len(keys), 2)
-        plain = {THROWS.key(self.scenario, self.obj, n, (0.28, -0.12), None)
-                 for n in (1, 2)}
-        self.assertEqual(len(plain), 1)
+
+        def key(scenario, n, parameters=(0.28, -0.12), meshcat=None):
+            perturbation = ThrowPerturbation.draw(scenario.throw.noise, n)
+            return THROWS.key(scenario, self.obj, perturbation, parameters,
+                              meshcat)
+        self.assertEqual(len({key(noisy, n) for n in (1, 2)}), 2)
+        self.assertEqual(len({key(self.scenario, n) for n in (1, 2)}), 1)
         # Not reused: the MLP's parameters, Meshcat, a plant without a
         # handover.
-        self.assertIsNone(THROWS.key(self.scenario, self.obj, 1, None, None))
-        self.assertIsNone(THROWS.key(self.scenario, self.obj, 1, (0.2, 0.0),
-                                     object()))
-        fast = load_scenario(name="Fast")
-        self.assertIsNone(THROWS.key(fast, self.obj, 1, (0.2, 0.0), None))
-
+        self.assertIsNone(key(self.scenario, 1, None))
+        self.assertIsNone(key(self.scenario, 1, (0.2, 0.0), object()))
+        self.assertIsNone(key(load_scenario(name="Fast"), 1, (0.2, 0.0)))
 
 if __name__ == "__main__":
     unittest.main()

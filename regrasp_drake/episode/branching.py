@@ -235,6 +235,6 @@ def _read_cell(shared: Episode, message: str, cell_parameters,
     the caller)."""
     h_catch, h_down = cell_parameters or (None, None)
     return read_result(shared.diagram, shared.simulator.get_context(),
-                       shared.scenario, shared.obj, shared.start_grasp,
-                       message=message, h_catch=h_catch, h_down=h_down,
+                       shared.scenario, shared.obj, message=message,
+                       h_catch=h_catch, h_down=h_down,
                        wall_s=wall_s)

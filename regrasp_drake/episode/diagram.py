@@ -1,9 +1,10 @@
-"""One episode's diagram and its simulator: the station and the catch
-controller (station/station.py) wired top to bottom with the loggers and
-Meshcat (`build_episode_diagram`), a simulator at the episode's initial
-conditions (`initialize`), and the same state gone on with in a diagram
-built for another plant step (`continue_with`, the handover at the release
-time). The station keeps the hardware; what one episode is, is here."""
+"""One episode's diagram and its simulator: the station (station/station.py)
+and the catch controller (station/catch_controller.py) wired top to bottom
+with the loggers and Meshcat, and where the episode starts
+(`build_episode_diagram`); a simulator at those initial conditions
+(`initialize`); and the same state gone on with in a diagram built for
+another plant step (`continue_with`, the handover at the release time). The
+station keeps the hardware; what one episode is, is here."""
 
 import dataclasses as dc
 
@@ -25,14 +26,14 @@ from pydrake.systems.primitives import LogVectorOutput, VectorLogSink
 
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
+from regrasp_drake.station.catch_controller import (
+    CatchController,
+    add_catch_controller,
+)
 from regrasp_drake.station.catch_state_machine import ThrowPerturbation
 from regrasp_drake.station.scenario import Scenario, hands_over
-from regrasp_drake.station.station import (
-    CatchController,
-    Station,
-    add_catch_controller,
-    add_station,
-)
+from regrasp_drake.station.start_pose import start_poses_on
+from regrasp_drake.station.station import Station, add_station
 from regrasp_drake.world import robot
 from regrasp_drake.world.object_model import ObjectSpec
 
@@ -52,12 +53,17 @@ class Loggers:
 @dc.dataclass
 class EpisodeDiagram:
     """One episode's diagram: the station, the catch controller wired to
-    its ports, the loggers and Meshcat."""
+    its ports, the loggers and Meshcat; and where the episode starts."""
     diagram: Diagram
     station: Station
     controller: CatchController
     loggers: Loggers
     meshcat: Meshcat | None
+    # Before the throw (start_pose.start_poses_on): the palm (its
+    # palm_surface frame) at the throw's start pose, and the object lying
+    # in it.
+    X_WP_initial: RigidTransform
+    X_WO_initial: RigidTransform
 
 
 def fixed_catch_parameters(scenario: Scenario, X_WG: RigidTransform | None,
@@ -75,55 +81,71 @@ def fixed_catch_parameters(scenario: Scenario, X_WG: RigidTransform | None,
 def build_episode_diagram(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
                           X_WG: RigidTransform | None, catch_parameters=None,
                           mlp_features=None, meshcat: Meshcat | None = None,
-                          throw_number: int = 1) -> EpisodeDiagram:
+                          perturbation: ThrowPerturbation = ThrowPerturbation()
+                          ) -> EpisodeDiagram:
     """One episode's diagram: the station, the catch controller wired to
-    its ports, the loggers, Meshcat when asked.
+    its ports, the loggers, Meshcat when asked; and the palm's and the
+    object's poses before the throw.
 
     X_WG: the palm's grasp pose; None makes a watching throw (no catch).
     catch_parameters: (h_catch, h_down) in m, or None to take them as the
     scenario's `catch.parameter_source` says: its fixed values, or the MLP
     system fed with `mlp_features` (v_catch, h_cm, r_cm, d_obj, v_conv).
-    throw_number: which throw of a run this is; it seeds the release noise
-    when the scenario has any (throw.noise).
+    perturbation: this throw's release noise (ThrowPerturbation.draw from
+    the scenario's throw.noise and the throw's number; default none).
     """
     catch_parameters = fixed_catch_parameters(scenario, X_WG, catch_parameters)
+    builder = DiagramBuilder()
+    # The station: plant, sensors, finger servos, arm controller.
+    station = add_station(builder, scenario, obj)
+    # The catch controller, wired to the station's ports; its arm IK is the
+    # station's robot's.
     if robot.directives_yaml(ik.directives) != robot.directives_yaml(
             scenario.directives):
         raise ValueError("build_episode_diagram: the ArmIk was built for "
                          "other directives than the scenario's; expected "
                          "ArmIk(scenario.directives)")
-    builder = DiagramBuilder()
-    # The station: plant, arm controller, finger servos, sensors.
-    station = add_station(builder, scenario, obj)
-    # The catch controller, wired to the station's ports.
     controller = add_catch_controller(
         builder, station, scenario, obj, ik=ik, X_WG=X_WG,
         catch_parameters=catch_parameters, mlp_features=mlp_features,
-        throw_number=throw_number)
-
+        perturbation=perturbation)
+    # Where the episode starts: the object lying in the open palm.
+    X_WP_initial, X_WO_initial = start_poses_on(
+        station.plant, station.arm, station.hand, obj, scenario)
     # Loggers, sampled at the sensors' rate.
+    loggers = add_loggers(builder, station, controller,
+                          scenario.sensors.period_s)
+    # Meshcat, when asked (loopback only; see replay.make_meshcat).
+    if meshcat is not None:
+        MeshcatVisualizer.AddToBuilder(
+            builder, station.GetOutputPort("query_object"), meshcat,
+            MeshcatVisualizerParams(publish_period=1 / 60))
+    return EpisodeDiagram(diagram=builder.Build(), station=station,
+                          controller=controller, loggers=loggers,
+                          meshcat=meshcat, X_WP_initial=X_WP_initial,
+                          X_WO_initial=X_WO_initial)
+
+
+def add_loggers(builder: DiagramBuilder, station: Station,
+                controller: CatchController, period_s: float) -> Loggers:
+    """Adds the loggers to `builder`: the station's and the catch
+    controller's signals, sampled every `period_s`, [s]."""
     def log(port):
-        return LogVectorOutput(port, builder, scenario.sensors.period_s)
+        return LogVectorOutput(port, builder, period_s)
     out = station.GetOutputPort
-    loggers = Loggers(
+    return Loggers(
         object=log(out("object_state")), ir=log(out("ir_levels")),
         bumper=log(out("bumper")),
         phase=log(controller.state_machine.GetOutputPort("phase")),
         actuation=log(out("net_actuation")), arm=log(out("arm_state")),
         params=log(controller.parameters.get_output_port()))
-    # Meshcat, when asked (loopback only; see replay.make_meshcat).
-    if meshcat is not None:
-        MeshcatVisualizer.AddToBuilder(
-            builder, out("query_object"), meshcat,
-            MeshcatVisualizerParams(publish_period=1 / 60))
-    return EpisodeDiagram(diagram=builder.Build(), station=station,
-                          controller=controller, loggers=loggers,
-                          meshcat=meshcat)
 
 
 def initialize(episode: EpisodeDiagram, scenario: Scenario) -> Simulator:
-    """A simulator at the episode's initial conditions (identical each time),
-    integrating as the scenario's simulator_config says."""
+    """A simulator at the episode's initial conditions (identical each time):
+    the arm at the throw's start pose, the hand open, the object lying in
+    the palm (EpisodeDiagram.X_WO_initial); integrating as the scenario's
+    simulator_config says."""
     simulator = Simulator(episode.diagram)
     ApplySimulatorConfig(scenario.simulator_config, simulator)
     station = episode.station
@@ -134,7 +156,7 @@ def initialize(episode: EpisodeDiagram, scenario: Scenario) -> Simulator:
                        throw.start_q(scenario.throw))
     plant.SetPositions(plant_context, station.hand, robot.HAND_OPEN)
     plant.SetFreeBodyPose(plant_context, station.object_body,
-                          station.X_WO_initial)
+                          episode.X_WO_initial)
     if hand_idle_until_handover(scenario):
         lock_hand(plant, plant_context, station.hand)
     simulator.Initialize()
@@ -152,7 +174,7 @@ def hand_idle_until_handover(scenario: Scenario) -> bool:
     handover builds, starts with them free (continue_with copies the
     plant's state, not its parameters, where Drake keeps the locks)."""
     return (throw.is_toss(scenario.throw)
-            and ThrowPerturbation.draw(scenario.throw.noise, 1).is_zero()
+            and scenario.throw.noise.is_zero()
             and hands_over(scenario))
 
 
@@ -161,6 +183,23 @@ def lock_hand(plant: MultibodyPlant, plant_context, hand) -> None:
     velocity zeroed, the joint held where it is)."""
     for index in plant.GetJointIndices(hand):
         plant.get_joint(index).Lock(plant_context)
+
+
+def advance_to_outcome(simulator, episode: EpisodeDiagram, scenario,
+                       t_final=None) -> str:
+    """Advances until the grasp monitor (or a failure) ends the episode, or
+    to t_final. Returns "" or the failure's message: an unreachable pose, or
+    a failed contact solve (recorded, never raised)."""
+    if t_final is None:
+        t_final = scenario.monitor.max_time_s + 1.0
+    try:
+        status = simulator.AdvanceTo(t_final)
+        # An unreachable pose.
+        if status.system() is episode.controller.state_machine:
+            return status.message()
+    except Exception as e:  # a failed contact solve
+        return str(e).strip().splitlines()[0] if str(e).strip() else repr(e)
+    return ""
 
 
 def continue_with(simulator: Simulator, episode: EpisodeDiagram,

@@ -8,15 +8,19 @@
     result = episode.result()            # the outcome, the grasp, the logs
 
 `run_episode` is those stages in one call, with an optional `at_release`
-plan. Here too, how an episode advances: its release time
-(`release_time`), the handover there to the catch's plant step
-(`hand_over`), the throws kept to go on from (`ThrowCache`), the advance to
-the outcome (`advance_to_outcome`). What it simulates is
-episode/diagram.py's; what it came to, episode/result.py's."""
+plan. Here too, the handover at the release time (station/throw.py's
+`release_time`) to the catch's plant step (`hand_over`), and the throws
+kept to go on from (`ThrowCache`). What it simulates, and how a simulator
+of it is started and advanced, is episode/diagram.py's; what it came to,
+episode/result.py's.
+
+What the episode derives from its scenario before it runs is derived once,
+here, and handed on: the throw's release noise (`Episode.perturbation`, for
+the kept throw's key and the state machine) and the catch parameters held
+fixed."""
 
 import dataclasses as dc
 import hashlib
-import math
 import pickle
 import time
 
@@ -27,6 +31,7 @@ from pydrake.systems.analysis import Simulator
 from regrasp_drake import memo
 from regrasp_drake.episode.diagram import (
     EpisodeDiagram,
+    advance_to_outcome,
     build_episode_diagram,
     continue_with,
     fixed_catch_parameters,
@@ -38,10 +43,8 @@ from regrasp_drake.episode.result import (
     read_logs,
     read_outcome,
     read_result,
-    start_grasp,
 )
 from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.station import throw
 from regrasp_drake.station.catch_state_machine import ThrowPerturbation
 from regrasp_drake.station.scenario import (
     Scenario,
@@ -49,17 +52,8 @@ from regrasp_drake.station.scenario import (
     hands_over,
     scenario_digest,
 )
+from regrasp_drake.station.throw import release_time
 from regrasp_drake.world.objects import ObjectSpec
-
-
-def release_time(scenario: Scenario) -> float:
-    """The state machine's first update at or after the throw's end, [s]: it
-    reads X_WG there and the arm leaves for the grasp pose. The object flies
-    free from here (the flight predictor predicts its state at this moment
-    too)."""
-    period = scenario.sensors.period_s
-    t = throw.free_time_s(scenario)
-    return math.ceil(t / period - 1e-9) * period
 
 
 @dc.dataclass
@@ -109,10 +103,10 @@ def hand_over(simulator, episode: EpisodeDiagram, scenario: Scenario,
     episode ends first, nothing is handed over. Drake handles the update
     events of a time at the start of the next step, so every event at the
     release time runs in the catch's diagram."""
+    t = release_time(scenario)
     later = catch_phase_scenario(scenario)
     if later is None:
         return Handover(simulator, episode, scenario)
-    t = release_time(scenario)
     message = advance_to_outcome(simulator, episode, scenario, t)
     context = simulator.get_context()
     if (message or context.get_time() < t
@@ -123,23 +117,6 @@ def hand_over(simulator, episode: EpisodeDiagram, scenario: Scenario,
     simulator_later = continue_with(simulator, episode, other, later)
     return Handover(simulator_later, other, later,
                     before=(simulator, episode))
-
-
-def advance_to_outcome(simulator, episode: EpisodeDiagram, scenario,
-                       t_final=None) -> str:
-    """Advances until the grasp monitor (or a failure) ends the episode, or
-    to t_final. Returns "" or the failure's message: an unreachable pose, or
-    a failed contact solve (recorded, never raised)."""
-    if t_final is None:
-        t_final = scenario.monitor.max_time_s + 1.0
-    try:
-        status = simulator.AdvanceTo(t_final)
-        # An unreachable pose.
-        if status.system() is episode.controller.state_machine:
-            return status.message()
-    except Exception as e:  # a failed contact solve
-        return str(e).strip().splitlines()[0] if str(e).strip() else repr(e)
-    return ""
 
 
 class ThrowCache:
@@ -161,7 +138,7 @@ class ThrowCache:
     the process's cache THROWS (listed in memo.caches()) unless the caller
     passes its own; only for scenarios handed over at the release time
     (catch_time_step_s), fixed catch parameters and no Meshcat (which
-    must record the throw). A throw with release noise is its own (the
+    must record the throw). A throw with release noise is its own (its
     perturbation is part of the key). `enabled = False` turns it off."""
 
     def __init__(self, size: int = 2):
@@ -174,16 +151,16 @@ class ThrowCache:
         self._diagrams = {}
         self.hits = 0
 
-    def key(self, scenario, obj, throw_number, catch_parameters, meshcat):
-        """The throw's key, or None when it cannot be reused (see above)."""
+    def key(self, scenario, obj, perturbation: ThrowPerturbation,
+            catch_parameters, meshcat):
+        """The key of the throw of `obj` perturbed by `perturbation`, or None
+        when it cannot be reused (see above)."""
         if (not self.enabled or meshcat is not None
                 or catch_parameters is None
                 or not hands_over(scenario)):
             return None
-        digest = scenario_digest(scenario)
-        perturbation = ThrowPerturbation.draw(scenario.throw.noise,
-                                              throw_number)
-        return (digest, hashlib.sha256(pickle.dumps(obj)).hexdigest(),
+        return (scenario_digest(scenario),
+                hashlib.sha256(pickle.dumps(obj)).hexdigest(),
                 repr(perturbation))
 
     def keep(self, key, handover: "Handover", ik) -> None:
@@ -247,10 +224,11 @@ class Episode:
     X_WG: the palm's grasp pose; catch_parameters: (h_catch, h_down), [m],
     or None for the scenario's catch.parameter_source (fixed values, or the
     MLP system fed with `mlp_features`); meshcat records the episode from
-    its start; throw_number seeds the release noise, if the scenario has
-    any; throws: the cache of throws simulated to their release this
-    episode goes on from and keeps its throw in (default: the process's,
-    THROWS)."""
+    its start; throw_number: which throw of a run this is: with it the
+    scenario's throw.noise draws this throw's release noise, once
+    (`perturbation`); throws: the cache of throws simulated to their release
+    this episode goes on from and keeps its throw in (default: the
+    process's, THROWS)."""
 
     def __init__(self, scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
                  X_WG: RigidTransform | None, catch_parameters=None,
@@ -259,10 +237,12 @@ class Episode:
         self._t0 = time.perf_counter()
         self.obj, self.ik = obj, ik
         self.X_WG, self.mlp_features = X_WG, mlp_features
-        self.meshcat, self.throw_number = meshcat, throw_number
+        self.meshcat = meshcat
+        # This throw's release noise, for the kept throw's key and the
+        # state machine.
+        self.perturbation = ThrowPerturbation.draw(scenario.throw.noise,
+                                                   throw_number)
         self.throws = THROWS if throws is None else throws
-        # How the object lies on the palm before the throw.
-        self.start_grasp = start_grasp(scenario, obj)
         self.catch_parameters = fixed_catch_parameters(scenario, X_WG,
                                                        catch_parameters)
         # The throw's scenario; the catch's (at its plant step) once handed
@@ -282,7 +262,7 @@ class Episode:
             scenario, self.obj, ik=self.ik, X_WG=self.X_WG,
             catch_parameters=self.catch_parameters,
             mlp_features=self.mlp_features, meshcat=self.meshcat,
-            throw_number=self.throw_number)
+            perturbation=self.perturbation)
 
     def start(self) -> None:
         """Stage 1: the episode to its release time: its throw kept in
@@ -292,7 +272,7 @@ class Episode:
         (`hand_over`), and kept. The scenario it goes on under is the
         catch's from here."""
         t0 = time.perf_counter()
-        key = self.throws.key(self.scenario, self.obj, self.throw_number,
+        key = self.throws.key(self.scenario, self.obj, self.perturbation,
                               self.catch_parameters, self.meshcat)
         handover = self.throws.resume(key, self.build, self.X_WG,
                                       self.catch_parameters, self.ik)
@@ -371,8 +351,7 @@ class Episode:
         watching = self.X_WG is None
         h = logs.params[:, -1] if logs.params.shape[1] else (None, None)
         return read_result(
-            self.diagram, context, self.scenario, self.obj, self.start_grasp,
-            message=self.message,
+            self.diagram, context, self.scenario, self.obj, message=self.message,
             h_catch=None if watching else float(h[0]),
             h_down=None if watching else float(h[1]),
             wall_s=wall_s, build_s=self.build_s, logs=logs)

@@ -120,17 +120,19 @@ def _rounded(value: float | None, digits: int) -> float | None:
 
 
 def read_result(episode: EpisodeDiagram, context, scenario: Scenario,
-                obj: ObjectSpec, start: grasp.Grasp, *, message: str,
-                h_catch: float | None, h_down: float | None, wall_s: float,
-                build_s: float = 0.0, logs: Logs | None = None
-                ) -> EpisodeResult:
+                obj: ObjectSpec, *, message: str, h_catch: float | None,
+                h_down: float | None, wall_s: float, build_s: float = 0.0,
+                logs: Logs | None = None) -> EpisodeResult:
     """The result of the episode that ended in `context` (its simulator's,
     at the end) with `message` (advance_to_outcome's): its outcome, how it
     ended (read_ending) and the grasp against the scenario's target
-    (judge_grasp). The one reader of an episode's end, for `Episode` and
-    for every forked cell (branching.run_cells)."""
+    (judge_grasp), from the start grasp (how the object lay in the palm
+    before the throw: the diagram's start poses). The one reader of an
+    episode's end, for `Episode` and for every forked cell
+    (branching.run_cells)."""
     outcome, grasp_t = read_outcome(episode, context, message)
     ending = read_ending(episode, context, outcome)
+    start = palm_grasp(obj, episode.X_WP_initial, episode.X_WO_initial)
     outcome, grasp_fields = judge_grasp(scenario, obj, episode, context,
                                         outcome, start)
     station = episode.station
@@ -145,11 +147,19 @@ def read_result(episode: EpisodeDiagram, context, scenario: Scenario,
 
 
 def start_grasp(scenario: Scenario, obj: ObjectSpec) -> grasp.Grasp:
-    """How the object lies on the palm before the throw (the station's
+    """How the object lies on the palm before the throw (start_pose's
     start poses)."""
-    X_WP, X_WO = start_poses(scenario, obj)
+    return palm_grasp(obj, *start_poses(scenario, obj))
+
+
+def palm_grasp(obj: ObjectSpec, X_WP, X_WO,
+               start: grasp.Grasp | None = None) -> grasp.Grasp:
+    """The grasp of the object at X_WO in the palm (its palm_surface frame)
+    at X_WP (grasp.measure; `start`, the start grasp, says which way is
+    "same"; None: this is the start grasp)."""
     X_PO = X_WP.inverse() @ X_WO
-    return grasp.measure(obj, X_PO.rotation().matrix(), X_PO.translation())
+    return grasp.measure(obj, X_PO.rotation().matrix(), X_PO.translation(),
+                         None if start is None else np.asarray(start.R_PO))
 
 
 def read_grasp(episode: EpisodeDiagram, context, obj: ObjectSpec,
@@ -161,10 +171,8 @@ def read_grasp(episode: EpisodeDiagram, context, obj: ObjectSpec,
     plant_context = plant.GetMyContextFromRoot(context)
     X_WP = plant.GetFrameByName("palm_surface", station.hand).CalcPoseInWorld(
         plant_context)
-    X_PO = X_WP.inverse() @ plant.EvalBodyPoseInWorld(plant_context,
-                                                      station.object_body)
-    return grasp.measure(obj, X_PO.rotation().matrix(), X_PO.translation(),
-                         np.asarray(start.R_PO))
+    return palm_grasp(obj, X_WP, plant.EvalBodyPoseInWorld(
+        plant_context, station.object_body), start)
 
 
 def judge_grasp(scenario: Scenario, obj: ObjectSpec, episode: EpisodeDiagram,

@@ -133,8 +133,7 @@ class ThrowPerturbation:
     def draw(noise, throw_number: int) -> "ThrowPerturbation":
         """The perturbation of throw `throw_number` under scenario noise
         `noise` (a ThrowNoise); all zeros without noise."""
-        if (noise.release_time_std_s == 0.0
-                and noise.joint_velocity_std_rad_per_s == 0.0):
+        if noise.is_zero():
             return ThrowPerturbation()
         rng = np.random.default_rng([noise.seed, throw_number])
         return ThrowPerturbation(
@@ -455,7 +454,7 @@ class CatchStateMachine(LeafSystem):
     def continue_at(self, context) -> None:
         """Makes this machine's table of references in `context` (copied
         from a machine of another plant step, at a sensor sample:
-        station.continue_with) for this machine's step, from the last
+        episode.diagram.continue_with) for this machine's step, from the last
         sensor sample on. (On a continuous plant there is no table.)"""
         if self._dt == 0.0:
             return

@@ -95,6 +95,11 @@ class ThrowNoise:
     joint_velocity_std_rad_per_s: float = 0.0
     seed: int = 0
 
+    def is_zero(self) -> bool:
+        """No deviations: every throw is the deterministic one."""
+        return (self.release_time_std_s == 0.0
+                and self.joint_velocity_std_rad_per_s == 0.0)
+
 
 @dc.dataclass
 class PalmTossConfig:
@@ -373,8 +378,8 @@ class Scenario:
     # The discrete plant's time step from the throw's end on (the flight,
     # the move to the grasp pose and the catch), [s]; null: plant_config's
     # throughout. The episode is handed over to a plant with this step at
-    # the release time (episode.release_time: the first sensor sample after
-    # the throw ends), state for state (station.continue_with). The release
+    # the release time (throw.release_time: the first sensor sample after
+    # the throw ends), state for state (episode.diagram.continue_with). The release
     # converges at 0.25 ms, the catch at 1 ms (success maps at 1 against
     # 0.5 ms: benchmarks/map_convergence.py). Must be null on a continuous
     # plant.

@@ -1,8 +1,10 @@
 """Where every episode starts: the arm at the throw's start pose, the hand
 open, the object lying in the palm; for the palm toss, at its rest there,
-found by dynamic relaxation (`rest_pose`). Computed once per scenario and
-object in a process (START_POSES and REST_POSES, memo.Memo caches the caller
-can clear: the same inputs, the same pose)."""
+found by dynamic relaxation (`rest_pose`): in a world of add_world's
+(`start_poses_on`: an episode's diagram), or in one of their own, once per
+scenario and object in a process (`start_poses`). START_POSES and
+REST_POSES are memo.Memo caches the caller can clear: the same inputs, the
+same pose."""
 
 import copy
 import pickle
@@ -24,20 +26,12 @@ from regrasp_drake.world.object_model import ObjectSpec
 
 def start_poses(scenario: Scenario,
                 obj: ObjectSpec) -> tuple[RigidTransform, RigidTransform]:
-    """(X_WP, X_WO) before the throw: the hand's palm_surface frame at the
-    throw's start pose and the object lying in the open palm (as every
-    episode starts; for the palm toss, its rest pose). Computed once per
-    scenario and object in a process."""
+    """(X_WP, X_WO) before the throw, as `start_poses_on` a world of its
+    own. Computed once per scenario and object in a process."""
     def compute():
-        builder = DiagramBuilder()
-        plant, _, instances, _, _ = add_world(builder, scenario, obj)
-        context = plant.CreateDefaultContext()
-        plant.SetPositions(context, instances.arm,
-                           throw.start_q(scenario.throw))
-        plant.SetPositions(context, instances.hand, robot.HAND_OPEN)
-        X_WP = plant.GetFrameByName(
-            "palm_surface", instances.hand).CalcPoseInWorld(context)
-        return X_WP, initial_object_pose(plant, instances, obj, scenario)
+        plant, _, instances, _, _ = add_world(DiagramBuilder(), scenario, obj)
+        return start_poses_on(plant, instances.arm, instances.hand, obj,
+                              scenario)
     return START_POSES.get((scenario_digest(scenario), pickle.dumps(obj)),
                            compute)
 
@@ -45,21 +39,24 @@ def start_poses(scenario: Scenario,
 START_POSES = Memo("start poses")
 
 
-def initial_object_pose(plant, instances, obj, scenario) -> RigidTransform:
-    """The object lies in the palm, its symmetry axis along the palm's y (the
-    knuckle line), its lowest point 1 mm above the bumper, its centre of mass
-    over the palm's centre (so that a lopsided object does not tip off).
-    For the palm toss, the object then comes to rest there (rest_pose)."""
+def start_poses_on(plant, arm, hand, obj: ObjectSpec,
+                   scenario: Scenario) -> tuple[RigidTransform, RigidTransform]:
+    """(X_WP, X_WO) before the throw in `plant`, a world of add_world's
+    with the robot's instances `arm` and `hand`: the hand's palm_surface
+    frame at the throw's start pose, the hand open, and the object lying in
+    the palm, its symmetry axis along the palm's y (the knuckle line), its
+    lowest point 1 mm above the bumper, its centre of mass over the palm's
+    centre (so that a lopsided object does not tip off). For the palm toss,
+    the object then comes to rest there (rest_pose)."""
     context = plant.CreateDefaultContext()
-    plant.SetPositions(context, instances.arm, throw.start_q(scenario.throw))
-    plant.SetPositions(context, instances.hand, robot.HAND_OPEN)
-    X_WP = plant.GetFrameByName("palm_surface", instances.hand).CalcPoseInWorld(
-        context)
+    plant.SetPositions(context, arm, throw.start_q(scenario.throw))
+    plant.SetPositions(context, hand, robot.HAND_OPEN)
+    X_WP = plant.GetFrameByName("palm_surface", hand).CalcPoseInWorld(context)
     lift = -_lowest_z(obj) + BUMPER_THICKNESS_M + 1e-3
     X_WO = X_WP @ RigidTransform([-obj.r_cm, -obj.h_cm, lift])
     if throw.is_toss(scenario.throw):
-        return rest_pose(scenario, obj, X_WO)
-    return X_WO
+        return X_WP, rest_pose(scenario, obj, X_WO)
+    return X_WP, X_WO
 
 
 # Dynamic relaxation (rest_pose): the object moves freely in steps of this

@@ -1,25 +1,20 @@
-"""The throw-and-catch station, and the catch controller wired to it.
-
-`add_station`: the station, with named ports as Drake's hardware stations
-have: PUMA 560 + hand + object in a MultibodyPlant with point contact; an
-inverse-dynamics controller for the arm on its own arm-only plant; PD servos
+"""The throw-and-catch station, with named ports as Drake's hardware
+stations have (`add_station`): PUMA 560 + hand + object in a MultibodyPlant
+with point contact; the infrared sensors and the tactile bumper; PD servos
 for the fingers (in the plant when it is discrete; on a continuous plant,
 which Drake's in-plant PD does not support, the same PD outside it, see
-add_finger_servos); the infrared sensors and the tactile bumper.
-`add_catch_controller`: the catch state machine, the source of the catch
-parameters (fixed, or the MLP) and the grasp monitor, outside the station.
-The hardware only: one episode's diagram, which wires the two with the
-loggers and Meshcat, and its simulator are episode/diagram.py's.
+add_finger_servos); an inverse-dynamics controller for the arm on its own
+arm-only plant. The hardware only: the catch controller wired to it is
+station/catch_controller.py's; one episode's diagram, which wires the two
+with the loggers and Meshcat, and its simulator are episode/diagram.py's.
 """
 
 import dataclasses as dc
 
 import numpy as np
-from pydrake.common.value import AbstractValue
 from pydrake.geometry import (
     SceneGraph,
 )
-from pydrake.math import RigidTransform
 from pydrake.multibody.plant import (
     MultibodyPlant,
 )
@@ -37,51 +32,21 @@ from pydrake.systems.framework import (
     Diagram,
     DiagramBuilder,
     InputPort,
-    LeafSystem,
     OutputPort,
 )
 from pydrake.systems.primitives import (
     Adder,
-    ConstantVectorSource,
     MatrixGain,
     Multiplexer,
 )
 
-from regrasp_drake.paths import MODELS_DIR
-from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.station import throw
-from regrasp_drake.station.catch_state_machine import (
-    CatchStateMachine,
-    ThrowPerturbation,
-)
-from regrasp_drake.station.grasp_monitor import GraspMonitor
-from regrasp_drake.station.mlp_system import MlpSystem, load_weights
 from regrasp_drake.station.plant import add_world, bumper_geometry
 from regrasp_drake.station.scenario import Scenario
 from regrasp_drake.station.sensors import InfraredSensors, TactileBumper
-from regrasp_drake.station.start_pose import initial_object_pose
 from regrasp_drake.world import robot
 from regrasp_drake.world.object_model import ObjectSpec
 
 _IR_FRAMES = [f"ir{i}" for i in range(1, 14)]
-
-class GraspPoseSource(LeafSystem):
-    """Outputs the palm's grasp pose X_WG, kept as an abstract parameter so
-    that it can be set in a running simulation's context (`set_pose`): a
-    catch planned when the object is seen leaving the hand
-    (`episode.episode.run_episode`'s `at_release`)."""
-
-    def __init__(self, X_WG: RigidTransform):
-        LeafSystem.__init__(self)
-        self._index = self.DeclareAbstractParameter(AbstractValue.Make(X_WG))
-        self.DeclareAbstractOutputPort(
-            "X_WG", lambda: AbstractValue.Make(RigidTransform()),
-            lambda context, out: out.set_value(
-                context.get_abstract_parameter(self._index).get_value()))
-
-    def set_pose(self, context, X_WG: RigidTransform) -> None:
-        """Sets the pose in this system's context."""
-        context.get_mutable_abstract_parameter(self._index).set_value(X_WG)
 
 
 @dc.dataclass
@@ -96,7 +61,6 @@ class Station:
     object_body: RigidBody
     infrared: InfraredSensors
     bumper: TactileBumper
-    X_WO_initial: RigidTransform  # the object's pose in the open palm
     inputs: dict[str, InputPort]
     outputs: dict[str, OutputPort]
 
@@ -119,54 +83,13 @@ def _port(ports: dict, name: str, kind: str):
     return ports[name]
 
 
-@dc.dataclass
-class CatchController:
-    """The catch controller's systems, wired to a station's ports."""
-    state_machine: CatchStateMachine
-    monitor: GraspMonitor
-    grasp_pose: GraspPoseSource
-    # The catch parameters' source: fixed (its value settable in a context),
-    # or the MLP system.
-    parameters: ConstantVectorSource | MlpSystem
-
-    def set_task(self, root_context, *, X_WG: RigidTransform | None = None,
-                 catch_parameters=None, watching: bool | None = None) -> None:
-        """Sets what this episode does in the diagram's context
-        `root_context`, before the state machine reads it (at the release
-        time: X_WG and whether it watches; at the trigger: the parameters):
-        the palm's grasp pose X_WG, the fixed catch parameters (h_catch,
-        h_down), [m], and `watching` (a watching throw parks the arm and
-        never catches). None leaves a value as it is. The one place an
-        episode's task is written into a running context (a kept throw going
-        on as another episode, a catch planned at the release, a forked
-        cell)."""
-        if watching is not None:
-            for system in (self.state_machine, self.monitor):
-                system.set_watching(
-                    system.GetMyMutableContextFromRoot(root_context), watching)
-        if X_WG is not None:
-            self.grasp_pose.set_pose(
-                self.grasp_pose.GetMyMutableContextFromRoot(root_context),
-                X_WG)
-        if catch_parameters is not None:
-            if not isinstance(self.parameters, ConstantVectorSource):
-                raise ValueError("set_task: the catch parameters come from "
-                                 "the MLP system in this diagram; expected "
-                                 "fixed ones")
-            source = self.parameters
-            source.get_mutable_source_value(
-                source.GetMyMutableContextFromRoot(root_context)
-            ).SetFromVector(list(catch_parameters))
-
-
-
 def add_station(builder: DiagramBuilder, scenario: Scenario,
                 obj: ObjectSpec) -> Station:
     """Adds the station to `builder`: the plant (PUMA + hand + `obj`) and
-    its scene graph, the arm's inverse-dynamics controller (on an arm-only
-    plant built from the scenario's directives), the fingers' PD servos (in
-    the plant when it is discrete, beside it when continuous), the 13
-    infrared sensors and the tactile bumper. Whatever drives it (the catch
+    its scene graph, the 13 infrared sensors and the tactile bumper, the
+    fingers' PD servos (in the plant when it is discrete, beside it when
+    continuous) and the arm's inverse-dynamics controller (on an arm-only
+    plant built from the scenario's directives). Whatever drives it (the catch
     controller, or another) is wired to the returned Station's named ports:
 
     Input ports: `arm_desired_state` (q, v: 12), `arm_desired_acceleration`
@@ -183,22 +106,8 @@ def add_station(builder: DiagramBuilder, scenario: Scenario,
     # The physics: PUMA + hand, the object, the ground (see add_world).
     plant, scene_graph, instances, object_body, object_geometries = (
         add_world(builder, scenario, obj))
-
-    # The arm: inverse dynamics on its own arm-only plant; the plant clamps
-    # the torques to the servos' effort limits.
-    arm_controller = builder.AddNamedSystem(
-        "arm_controller", make_arm_controller(scenario))
-    builder.Connect(plant.get_state_output_port(instances.arm),
-                    arm_controller.GetInputPort("estimated_state"))
-    builder.Connect(arm_controller.GetOutputPort("actuation"),
-                    plant.get_actuation_input_port(instances.arm))
-
-    # The fingers: PD servos in the plant, or beside a continuous one.
-    if plant.time_step() > 0:
-        hand_desired_state = plant.get_desired_state_input_port(instances.hand)
-    else:
-        servos = add_finger_servos(builder, plant, instances.hand)
-        hand_desired_state = servos.get_input_port(0)
+    bumper_geometries = bumper_geometry(plant, scene_graph, instances.hand,
+                                        scenario.contact.palm)
 
     # Sensors: 13 infrared range sensors and the tactile bumper.
     s = scenario.sensors
@@ -211,11 +120,25 @@ def add_station(builder: DiagramBuilder, scenario: Scenario,
     builder.Connect(scene_graph.get_query_output_port(),
                     ir.GetInputPort("query_object"))
     bumper = builder.AddNamedSystem("bumper", TactileBumper(
-        plant, bumper_geometry(plant, scene_graph, instances.hand,
-                                scenario.contact.palm),
-        object_geometries, s.period_s))
+        plant, bumper_geometries, object_geometries, s.period_s))
     builder.Connect(plant.get_contact_results_output_port(),
                     bumper.GetInputPort("contact_results"))
+
+    # The fingers: PD servos in the plant, or beside a continuous one.
+    if plant.time_step() > 0:
+        hand_desired_state = plant.get_desired_state_input_port(instances.hand)
+    else:
+        servos = add_finger_servos(builder, plant, instances.hand)
+        hand_desired_state = servos.get_input_port(0)
+
+    # The arm: inverse dynamics on its own arm-only plant; the plant clamps
+    # the torques to the servos' effort limits.
+    arm_controller = builder.AddNamedSystem(
+        "arm_controller", make_arm_controller(scenario))
+    builder.Connect(plant.get_state_output_port(instances.arm),
+                    arm_controller.GetInputPort("estimated_state"))
+    builder.Connect(arm_controller.GetOutputPort("actuation"),
+                    plant.get_actuation_input_port(instances.arm))
 
     # What drives the station, and what it shows.
     inputs = {
@@ -239,9 +162,7 @@ def add_station(builder: DiagramBuilder, scenario: Scenario,
     return Station(
         plant=plant, scene_graph=scene_graph, arm=instances.arm,
         hand=instances.hand, object_body=object_body, infrared=ir,
-        bumper=bumper,
-        X_WO_initial=initial_object_pose(plant, instances, obj, scenario),
-        inputs=inputs, outputs=outputs)
+        bumper=bumper, inputs=inputs, outputs=outputs)
 
 
 def make_arm_controller(scenario: Scenario) -> Diagram:
@@ -293,70 +214,6 @@ def make_arm_controller(scenario: Scenario) -> Diagram:
                     actuation.get_input_port())
     builder.ExportOutput(actuation.get_output_port(), "actuation")
     return builder.Build()
-
-
-def add_catch_controller(builder: DiagramBuilder, station: Station,
-                         scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
-                         X_WG: RigidTransform | None, catch_parameters=None,
-                         mlp_features=None,
-                         throw_number: int = 1) -> CatchController:
-    """Adds the catch controller to `builder` and wires it to `station`
-    (added to the same builder): the catch parameters' source, the grasp
-    pose, the catch state machine (Fig. 9) and the grasp monitor (paper
-    §V.B), which stops the simulation at the outcome. Arguments as
-    `build_episode_diagram`'s."""
-    # The catch parameters: fixed, or predicted by the MLP.
-    if catch_parameters is not None:
-        params = builder.AddNamedSystem(
-            "catch_parameters", ConstantVectorSource(list(catch_parameters)))
-    else:
-        model, _ = load_weights(MODELS_DIR / scenario.catch.weights)
-        params = builder.AddNamedSystem("mlp", MlpSystem(model))
-        features = builder.AddNamedSystem(
-            "features", ConstantVectorSource(list(mlp_features)))
-        builder.Connect(features.get_output_port(), params.get_input_port())
-
-    # The catch state machine (Fig. 9).
-    # A watching throw parks the arm out of the flight's way (set_task
-    # makes a diagram watch or catch).
-    watching = X_WG is None
-    q_park = throw.end_state(scenario.throw, ik)[0].copy()
-    q_park[0] += scenario.throw.park_joint1_offset_rad
-    machine = builder.AddNamedSystem("catch_state_machine", CatchStateMachine(
-        scenario, ik, robot.HAND_OPEN, robot.HAND_CLOSED,
-        robot.FINGER_MAX_SPEED, park_q=q_park, watching=watching,
-        perturbation=ThrowPerturbation.draw(scenario.throw.noise, throw_number)))
-    grasp = builder.AddNamedSystem("X_WG", GraspPoseSource(
-        X_WG if X_WG is not None else RigidTransform()))
-    builder.Connect(grasp.get_output_port(), machine.GetInputPort("X_WG"))
-    builder.Connect(station.GetOutputPort("ir_levels"),
-                    machine.GetInputPort("ir_levels"))
-    builder.Connect(params.get_output_port(),
-                    machine.GetInputPort("catch_parameters"))
-    builder.Connect(station.GetOutputPort("arm_state"),
-                    machine.GetInputPort("arm_state"))
-    for name in ("arm_desired_state", "arm_desired_acceleration",
-                 "hand_desired_state"):
-        builder.Connect(machine.GetOutputPort(name),
-                        station.GetInputPort(name))
-
-    # The grasp monitor (paper §V.B); it stops the simulation at the outcome.
-    plant = station.plant
-    palm = plant.GetBodyByName("palm", station.hand)
-    monitor = builder.AddNamedSystem("grasp_monitor", GraspMonitor(
-        scenario, station.object_body.index(), palm.index(),
-        plant.GetFrameByName("palm_surface", station.hand)
-        .GetFixedPoseInBodyFrame(),
-        obj.bounding_radius, watching=watching))
-    for name in ("ir_levels", "bumper", "hand_state", "body_poses"):
-        builder.Connect(station.GetOutputPort(name),
-                        monitor.GetInputPort(name))
-    builder.Connect(machine.GetOutputPort("hand_desired_state"),
-                    monitor.GetInputPort("hand_desired_state"))
-    builder.Connect(machine.GetOutputPort("phase"), monitor.GetInputPort("phase"))
-    return CatchController(state_machine=machine, monitor=monitor,
-                           grasp_pose=grasp, parameters=params)
-
 
 
 def _take_out_pd_gains(plant: MultibodyPlant, hand) -> list[tuple]:
@@ -413,5 +270,3 @@ def add_finger_servos(builder: DiagramBuilder, plant: MultibodyPlant, hand):
     builder.Connect(mux.get_output_port(0), pd.get_input_port())
     builder.Connect(pd.get_output_port(), plant.get_actuation_input_port(hand))
     return mux
-
-

@@ -6,6 +6,8 @@ swing along the scenario's knots and open at the release time; or
 Times are counted from the end of the settling, [s].
 """
 
+import math
+
 import numpy as np
 
 from regrasp_drake.station.palm_toss import TossDesign, toss_trajectory
@@ -54,6 +56,15 @@ def free_time_s(scenario, brake_delay_s: float = 0.0) -> float:
     """end_s in an episode's time (the settling first): when the object is
     in free flight and the move toward the grasp pose takes over, [s]."""
     return scenario.throw.settle_s + end_s(scenario.throw, brake_delay_s)
+
+
+def release_time(scenario) -> float:
+    """The catch state machine's first update at or after the throw's end
+    (free_time_s), [s]: it reads X_WG there and the arm leaves for the
+    grasp pose. The object flies free from here (the flight predictor
+    predicts its state at this moment too)."""
+    period = scenario.sensors.period_s
+    return math.ceil(free_time_s(scenario) / period - 1e-9) * period
 
 
 def end_state(throw, ik) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
