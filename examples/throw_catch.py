@@ -1,5 +1,5 @@
 """Throw a Table 1 object, watch its flight, and catch it with the shipped
-network's parameters; save the replay.
+planner's parameters; save the replay.
 
     .venv/bin/python examples/throw_catch.py [--object table1-row2]
         [--object-file examples/my_object.yaml] [--out out/throw_catch.html]
@@ -7,9 +7,12 @@ network's parameters; save the replay.
 
 The learning phase cut to one catch attempt (`rd.regrasp` with
 max_throws=2): throw 1 watches; the offline stage plans the catch; the
-trained network in models/ predicts (h_catch, h_down) from (v_catch, h_cm,
-r_cm, d_obj, v_conv), quantized to its grid cell; throw 2 catches,
-corrected at its release. Writes throw_catch.html (the Meshcat replay of
+target's shipped planner picks the cell (h_catch, h_down): under a grasp
+target the chooser that won its judging on unseen geometries
+(models/planner_<target>.json: the learned planner, the best constant cell
+or the paper's network; docs/planner.md), under `any` the paper's trained
+network from (v_catch, h_cm, r_cm, d_obj, v_conv), quantized to its grid
+cell; throw 2 catches, corrected at its release. Writes throw_catch.html (the Meshcat replay of
 both throws, self-contained) and throw_catch.png (the sensors of throw 2
 over time) in out/ (at the top of the repository, git-ignored; ./out when
 installed; --out elsewhere), and prints the outcome and the regrasp it
@@ -57,6 +60,7 @@ def main() -> int:
     run.plot(args.out.with_suffix(".png"))
     print(json.dumps(run.episode.summary() | {
         "network_output": [round(x, 4) for x in run.learning.raw_prediction],
+        "chosen_by": run.learning.planner,
         "plan": run.plan.as_dict()}, indent=1))
     print(run.regrasp_line())
     print(f"replay: {args.out}  sensors: {args.out.with_suffix('.png')}")
