@@ -36,6 +36,7 @@ from regrasp_drake.errors import InputError
 from regrasp_drake.learning.flight_predictor import FlightPredictor
 from regrasp_drake.learning.learning_phase import NoCatchPoint, learn
 from regrasp_drake.learning.offset_prior import OffsetPrior
+from regrasp_drake.learning.planner import PAPER_NETWORK
 from regrasp_drake.learning.table1 import object_names
 from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning import grasp
@@ -51,7 +52,7 @@ DEFAULT_TARGETS = [f"{kind}:{offset}" for kind in ("keep", "flip")
 
 
 def run_one(scenario, obj, model, ik, mode, max_throws, predictor,
-            offset_prior) -> dict:
+            offset_prior, planner=None) -> dict:
     try:
         check_reachable(Target(scenario.regrasp.target,
                                scenario.regrasp.offset_mm), obj)
@@ -62,7 +63,7 @@ def run_one(scenario, obj, model, ik, mode, max_throws, predictor,
         result = learn(scenario, obj, model, ik=ik, max_throws=max_throws,
                        progress=None, offset_prior=offset_prior,
                        flight_predictor=predictor if mode == "first-throw"
-                       else None)
+                       else None, planner=planner)
     except (NoCatchPoint, InputError) as e:
         return {"stopped": "no_catch_point", "error": str(e),
                 "success": False, "caught": False,
@@ -75,7 +76,8 @@ def run_one(scenario, obj, model, ik, mode, max_throws, predictor,
                               result.plan.X_WG)
     return {k: d[k] for k in ("success", "caught", "throws", "stopped",
                               "start_grasp", "achieved_grasp", "grasp_error",
-                              "wall_s")} | {
+                              "wall_s", "planner")} | {
+        "start_cell": d["prediction"]["start_cell"],
         "attempts": [a["outcome"] for a in d["attempts"]],
         "predicted_grasp": predicted.as_dict()}
 
@@ -88,7 +90,7 @@ def _job(task) -> dict:
     shipped network, flight predictor and offset prior loaded once per
     process."""
     (scenario, target, name, mode, level, trial, max_throws,
-     use_prior) = task
+     use_prior, paper) = task
     torch.set_num_threads(1)
     if not _MODELS:
         _MODELS["model"] = load_weights(MODELS_DIR / scenario.catch.weights)[0]
@@ -99,9 +101,11 @@ def _job(task) -> dict:
         _MODELS["ik"] = ArmIk(scenario.directives)
     return {"object": name, "target": target.as_dict(), "mode": mode,
             "level": level, "trial": trial,
-            "scenario_digest": scenario_digest(scenario)} | run_one(
+            "scenario_digest": scenario_digest(scenario),
+            "planners": "paper" if paper else "shipped"} | run_one(
         scenario, resolve_object(name=name), _MODELS["model"], _MODELS["ik"],
-        mode, max_throws, _MODELS["predictor"], _MODELS["prior"])
+        mode, max_throws, _MODELS["predictor"], _MODELS["prior"],
+        PAPER_NETWORK if paper else None)
 
 
 def landing(rows: list[dict]) -> dict:
@@ -211,6 +215,10 @@ def main(argv=None) -> int:
                         help="the palm against models/offset_prior.json's "
                              "slide from the first throw (default: at the "
                              "target's offset, as the command line)")
+    parser.add_argument("--paper-network", action="store_true",
+                        help="start every search from the paper network's "
+                             "cell (default: the target's shipped planner, "
+                             "models/planner_<target>.json's winner)")
     parser.add_argument("--noise-level", type=float, default=0.0,
                         help="release noise as benchmarks/noise_curve.py's "
                              "level k: release time std k x 2 ms, joint "
@@ -256,11 +264,17 @@ def main(argv=None) -> int:
                trial)
         if key not in done:
             jobs.append((scenario, target, name, mode, args.noise_level,
-                         trial, args.max_throws, args.offset_prior))
+                         trial, args.max_throws, args.offset_prior,
+                         args.paper_network))
         elif done[key]["scenario_digest"] != scenario_digest(scenario):
             raise SystemExit(f"{rows_path}: row {key} was made under "
                              "another scenario; move the file away to "
                              "start again")
+        elif done[key].get("planners", "paper") != (
+                "paper" if args.paper_network else "shipped"):
+            raise SystemExit(f"{rows_path}: row {key} was made with other "
+                             "planners (--paper-network); move the file "
+                             "away to start again")
 
     # Each job is deterministic on its own: forked workers give the same
     # rows as a serial run, in the jobs' order.

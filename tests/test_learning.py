@@ -28,10 +28,12 @@ from regrasp_drake.learning.learning_phase import (
     predict,
 )
 from regrasp_drake.learning.library import load_library
+from regrasp_drake.learning.planner import Planner
 from regrasp_drake.learning.search import wavefront_order
 from regrasp_drake.parameter_space import nearest_cell
 from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning.catch_plan import CatchPoint
+from regrasp_drake.planning.grasp import Target
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.mlp_system import (
     FEATURE_NAMES,
@@ -39,7 +41,7 @@ from regrasp_drake.station.mlp_system import (
     load_weights,
     save_weights,
 )
-from regrasp_drake.station.scenario import load_scenario
+from regrasp_drake.station.scenario import load_scenario, with_target
 from regrasp_drake.world.objects import load_catalogue
 
 OBJECT = "table1-row2"
@@ -124,9 +126,12 @@ class TestLearningPhase(unittest.TestCase):
         self.assertTrue(r["caught"])
         self.assertEqual(r["throws"], 1 + len(r["attempts"]))
         self.assertEqual(r["attempts"][0]["throw"], 2)
-        # Throw 2 uses the cell of the network's prediction.
+        # Throw 2 uses the cell of the network's prediction: under `any`
+        # the paper's network chooses (learning/planner.py), and says so.
         self.assertEqual(r["prediction"]["start_cell"], [6, 2])
         self.assertEqual(r["attempts"][0]["cell"], [6, 2])
+        self.assertEqual(r["planner"], "paper_network")
+        self.assertEqual(r["attempts"][0]["chosen_by"], "paper_network")
         self.assertEqual((r["attempts"][0]["h_catch"],
                           r["attempts"][0]["h_down"]), (0.28, -0.12))
         self.assertEqual(r["attempts"][-1]["outcome"], "caught")
@@ -146,6 +151,7 @@ class TestLearningPhase(unittest.TestCase):
         self.assertEqual(entry.catch_point, r["plan"]["catch_point"])
         self.assertEqual(entry.scenario, "--scenario-name Fast")
         self.assertEqual((entry.mode, entry.search), ("watch", "wavefront"))
+        self.assertEqual(entry.chosen_by, "paper_network")
 
     def test_apply_catches_in_one_throw(self):
         self.assertEqual(self.applied.returncode, 0, self.applied.stderr)
@@ -153,6 +159,7 @@ class TestLearningPhase(unittest.TestCase):
         self.assertTrue(a["caught"])
         self.assertEqual(a["throws"], 1)
         self.assertEqual((a["h_catch"], a["h_down"]), (0.28, -0.12))
+        self.assertEqual(a["chosen_by"], "paper_network")
         # The same throw as the learning phase's catch, to the last bit.
         self.assertEqual(a["sim_time_s"],
                          self.learn_json["attempts"][-1]["sim_time_s"])
@@ -181,6 +188,26 @@ class TestLearningPhase(unittest.TestCase):
         self.assertTrue(all(a.outcome != "caught" for a in r.attempts))
         self.assertIsNone(r.learned)
         self.assertFalse(self.capped_library.exists())
+
+
+class PlannerChoiceTest(unittest.TestCase):
+    def test_the_planner_chooses_the_first_cell(self):
+        # Under a target, a planner that is the best constant cell (7, 4)
+        # starts the search there, not at the network's (6, 2); the
+        # attempts after it are the search's.
+        scenario = with_target(load_scenario(name="Fast"), Target("flip"))
+        with tempfile.TemporaryDirectory() as d:
+            model, _ = load_weights(constant_weights(Path(d) / "w.pt", 0.28,
+                                                     -0.12))
+        r = learn(scenario, load_catalogue()[OBJECT], model, ik=ArmIk(),
+                  max_throws=3, progress=None,
+                  planner=Planner("best_constant", "test", cell=(7, 4)))
+        self.assertEqual(r.planner, "best_constant")
+        self.assertEqual(r.start_cell, (7, 4))
+        self.assertEqual(r.attempts[0].cell, (7, 4))
+        self.assertEqual([a.chosen_by for a in r.attempts],
+                         ["best_constant"] + ["search"] * (len(r.attempts) - 1))
+        self.assertEqual(r.as_dict()["planner"], "best_constant")
 
 
 class TestCommandErrors(unittest.TestCase):
