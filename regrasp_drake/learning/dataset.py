@@ -132,12 +132,7 @@ def generate(names: list[str], out_dir: Path, *, workers: int = 1,
     scenario: a Scenario (default: the shipped one); the workers get it as
     data (it pickles as its YAML). One run at a time works on a data set
     (LOCK_FILE in it)."""
-    if backend not in ("process", "ray"):
-        raise InputError(f"--backend: got {backend!r}, expected process or ray")
-    if workers < 1:
-        raise InputError(f"--workers: got {workers}, expected >= 1")
-    if not 1 <= catch_points <= 5:
-        raise InputError(f"--catch-points: got {catch_points}, expected 1 to 5")
+    _check_run(backend, workers, catch_points)
     names = entry_names(names, catch_points)
     out_dir = Path(out_dir)
     scenario = scenario or load_scenario()
@@ -148,6 +143,16 @@ def generate(names: list[str], out_dir: Path, *, workers: int = 1,
                          scenario=scenario, progress=progress,
                          only=only, catch_points=catch_points)
 
+
+
+def _check_run(backend, workers, catch_points) -> None:
+    """Refuses a run's settings out of range (InputError naming the flag)."""
+    if backend not in ("process", "ray"):
+        raise InputError(f"--backend: got {backend!r}, expected process or ray")
+    if workers < 1:
+        raise InputError(f"--workers: got {workers}, expected >= 1")
+    if not 1 <= catch_points <= 5:
+        raise InputError(f"--catch-points: got {catch_points}, expected 1 to 5")
 
 
 # The lock a run holds on its data set directory (a second run on it is
@@ -220,12 +225,7 @@ def generate_targets(names: list[str], root: Path, *, targets=TARGET_SETS,
     or scenario is refused before anything runs), resumed and assembled as
     `generate` does it. Returns each data set's provenance by directory
     name. only: as for generate."""
-    if backend not in ("process", "ray"):
-        raise InputError(f"--backend: got {backend!r}, expected process or ray")
-    if workers < 1:
-        raise InputError(f"--workers: got {workers}, expected >= 1")
-    if not 1 <= catch_points <= 5:
-        raise InputError(f"--catch-points: got {catch_points}, expected 1 to 5")
+    _check_run(backend, workers, catch_points)
     names = entry_names(names, catch_points)
     base = scenario or load_scenario()
     sets = {target_dir_name(t): (Path(root) / target_dir_name(t),
