@@ -37,6 +37,7 @@ from regrasp_drake.learning.learning_phase import apply_learned
 from regrasp_drake.learning.learning_phase import learn as learning_phase
 from regrasp_drake.learning.library import DEFAULT_LIBRARY, lookup
 from regrasp_drake.learning.offset_prior import OffsetPrior
+from regrasp_drake.learning.planner import PAPER_NETWORK
 from regrasp_drake.learning.run_replay import RunReplay
 from regrasp_drake.paths import MODELS_DIR, OUT_DIR
 from regrasp_drake.planning.grasp import Target, check_reachable
@@ -52,6 +53,8 @@ from regrasp_drake.world.objects import ObjectSpec, resolve_object
 # Where `learn` stores what it learned and `apply` looks it up by default
 # (the command line's --library default).
 DEFAULT_LIBRARY_PATH = OUT_DIR / DEFAULT_LIBRARY
+# learn's planner: the target's shipped one, or the paper's network.
+PLANNER_CHOICES = ("shipped", "paper")
 
 
 def load_object(name: str | None = None, *, file=None) -> ObjectSpec:
@@ -155,9 +158,9 @@ def learn(obj: ObjectSpec, *, scenario: Scenario | None = None,
           offset_prior=None, library=DEFAULT_LIBRARY_PATH,
           meshcat=None, replay: bool = True, progress=sys.stderr,
           scenario_label: str = "defaults",
-          object_source: str = "catalogue") -> Run:
+          object_source: str = "catalogue", planner: str = "shipped") -> Run:
     """`regrasp-drake learn`: the learning phase on `obj` (paper Fig. 1):
-    watch, plan, the network's cell, catch, and search the parameter space
+    watch, plan, the planner's cell, catch, and search the parameter space
     until a catch (learning/learning_phase.py).
 
     target: the grasp to end in (a Target or its kind; default the
@@ -171,7 +174,12 @@ def learn(obj: ObjectSpec, *, scenario: Scenario | None = None,
     offset_prior: a path or a loaded OffsetPrior (default none). library:
     where a catch is stored (None: not stored). progress: a stream for one
     line per throw (None: quiet). scenario_label, object_source: what the
-    library records of where the scenario and the object came from."""
+    library records of where the scenario and the object came from.
+    planner: who picks the search's first cell, "shipped" (the target's
+    planner, models/planner_<target>.json's winner; the paper's network
+    under `any`) or "paper" (the paper's network; docs/planner.md)."""
+    if planner not in PLANNER_CHOICES:
+        raise field_error("planner", planner, " or ".join(PLANNER_CHOICES))
     torch.set_num_threads(1)
     scenario = _checked(scenario, obj, target)
     recording = _recording(meshcat, replay)
@@ -191,7 +199,8 @@ def learn(obj: ObjectSpec, *, scenario: Scenario | None = None,
         at_release=at_release, search=search,
         offset_prior=load_offset_prior(offset_prior, scenario),
         meshcat=None if recording is None else recording.meshcat,
-        on_episode=on_episode, progress=progress)
+        on_episode=on_episode, progress=progress,
+        planner=PAPER_NETWORK if planner == "paper" else None)
     # The plan of the last catching throw (a later one's, after an offset
     # correction, never ran).
     plan = result.attempts[-1].plan if result.attempts else result.plan

@@ -205,7 +205,15 @@ def _offset_prior(args, scenario):
 
 
 def _add_search_arg(p: argparse.ArgumentParser) -> None:
+    """--search and --planner: the order of the cells, and who picks the
+    first."""
     from regrasp_drake.learning.search import SEARCHES
+    p.add_argument("--planner", choices=("shipped", "paper"),
+                   default="shipped",
+                   help="who picks the search's first cell: shipped (the "
+                        "target's planner, models/planner_<target>.json's "
+                        "winner on unseen geometries; the paper's network "
+                        "under any; default) or paper (the paper's network)")
     p.add_argument("--search", choices=SEARCHES, default="wavefront",
                    help="the order of the cells tried after the network's: "
                         "wavefront (the paper's rings of neighbours; "
@@ -239,7 +247,7 @@ def _cmd_learn(args) -> int:
                     flight_model=_flight_predictor(args),
                     at_release=args.at_release, search=args.search,
                     offset_prior=_offset_prior(args, scenario),
-                    replay=args.html is not None)
+                    planner=args.planner, replay=args.html is not None)
     result = run.learning
     if args.html is not None:
         run.save_replay(args.html)
@@ -372,6 +380,7 @@ def _cmd_table1(args) -> int:
     _check_first_throw_args(args)  # before torch loads
     import torch
 
+    from regrasp_drake.learning.planner import PAPER_NETWORK
     from regrasp_drake.learning.table1 import (
         format_markdown,
         object_names,
@@ -395,7 +404,9 @@ def _cmd_table1(args) -> int:
                       flight_predictor=flight_predictor,
                       objects=args.objects, max_throws=args.max_throws,
                       at_release=args.at_release, search=args.search,
-                      offset_prior=_offset_prior(args, scenario))
+                      offset_prior=_offset_prior(args, scenario),
+                      planner=PAPER_NETWORK if args.planner == "paper"
+                      else None)
     print(format_markdown(rows))
     write_outputs(rows, args.json, args.markdown)
     return 0
