@@ -217,5 +217,37 @@ class ShippedDataTest(unittest.TestCase):
         self.assertIn("--offset-mm: got 30 without --target", done.stderr)
 
 
+@unittest.skipUnless((MODELS_DIR / "results" / "planner_flip+0.json").exists(),
+                     "no flip +0 planner report")
+class BenchmarkTest(unittest.TestCase):
+    """benchmarks/learned_planner.py gathers the shipped reports (judging
+    none again) into one JSON and a table; a bad target exits 2."""
+
+    def run_script(self, *args):
+        return subprocess.run(
+            [sys.executable, "benchmarks/learned_planner.py", *args],
+            capture_output=True, text=True, cwd=REPO)
+
+    def test_gathers_the_reports(self):
+        shipped = json.loads(
+            (MODELS_DIR / "results" / "planner_flip+0.json").read_text())
+        with tempfile.TemporaryDirectory() as d:
+            out = Path(d) / "planner.json"
+            done = self.run_script("--targets", "flip+0", "--out", str(out))
+            self.assertEqual(done.returncode, 0, done.stderr)
+            (row,) = json.loads(out.read_text())["targets"]
+        self.assertEqual(row["by_geometry"], shipped["by_geometry"])
+        self.assertEqual(row["planner"], shipped["planner"])
+        self.assertAlmostEqual(row["learned_lead_by_geometry"],
+                               shipped["by_geometry"]["learned"]
+                               - shipped["by_geometry"]["best_constant"], 4)
+        self.assertIn("| flip+0 |", done.stdout)
+
+    def test_bad_target_refused(self):
+        done = self.run_script("--targets", "flip+7")
+        self.assertEqual(done.returncode, 2)
+        self.assertIn("--targets: got 'flip+7'", done.stderr)
+
+
 if __name__ == "__main__":
     unittest.main()
