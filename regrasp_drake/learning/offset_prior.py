@@ -25,6 +25,7 @@ from regrasp_drake import atomic_io
 from regrasp_drake import progress as progress_lines
 from regrasp_drake.errors import InputError
 from regrasp_drake.learning.learning_phase import NoCatchPoint, learn
+from regrasp_drake.learning.planner import PAPER_NETWORK
 from regrasp_drake.map_rows import open_rows, read_rows
 from regrasp_drake.planning import grasp
 from regrasp_drake.planning.grasp import Target
@@ -136,7 +137,7 @@ def _one(k: int) -> dict:
     try:
         grasp.check_reachable(target, obj)
         result = learn(scenario, obj, model, ik=ArmIk(scenario.directives),
-                       max_throws=2, progress=None)
+                       max_throws=2, progress=None, planner=PAPER_NETWORK)
     except (NoCatchPoint, InputError) as e:
         return row | {"outcome": "no_plan", "error": str(e)}
     attempt = result.attempts[0]
