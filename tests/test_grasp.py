@@ -196,10 +196,11 @@ class SameMissTest(unittest.TestCase):
 
     def _phase(self, kind):
         from regrasp_drake.learning.learning_phase import _Phase
+        from regrasp_drake.learning.planner import PAPER_NETWORK
         return _Phase(with_target(load_scenario(), Target(kind)),
                       resolve_object(name="table1-row2"), None, None,
                       prior=None, at_release=False, meshcat=None,
-                      on_episode=None, progress=None)
+                      on_episode=None, progress=None, planner=PAPER_NETWORK)
 
     def test_reasons(self):
         for held, error, reason in (

@@ -31,6 +31,7 @@ from regrasp_drake.episode import episode as episode_module
 from regrasp_drake.episode.result import start_grasp
 from regrasp_drake.learning.flight_predictor import FlightPredictor
 from regrasp_drake.learning.learning_phase import _Phase
+from regrasp_drake.learning.planner import PAPER_NETWORK
 from regrasp_drake.parameter_space import cell_parameters
 from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning import grasp
@@ -180,7 +181,7 @@ def first_plan(scenario_key, scenario, obj, ik, model, predictor):
     if scenario_key not in _CACHE:
         phase = _Phase(scenario, obj, model, ik, prior=None,
                        at_release=False, meshcat=None, on_episode=None,
-                       progress=None)
+                       progress=None, planner=PAPER_NETWORK)
         phase.plan_first(predictor)
         _CACHE[scenario_key] = (phase.plan, phase.search.next_cell,
                                 phase.predicted)
