@@ -28,7 +28,12 @@ from regrasp_drake.learning.learning_phase import (
     predict,
 )
 from regrasp_drake.learning.library import load_library
-from regrasp_drake.learning.planner import Planner
+from regrasp_drake.learning.planner import (
+    Planner,
+    SuccessModel,
+    choose,
+    planner_features,
+)
 from regrasp_drake.learning.search import wavefront_order
 from regrasp_drake.parameter_space import nearest_cell
 from regrasp_drake.paths import MODELS_DIR
@@ -208,6 +213,22 @@ class PlannerChoiceTest(unittest.TestCase):
         self.assertEqual([a.chosen_by for a in r.attempts],
                          ["best_constant"] + ["search"] * (len(r.attempts) - 1))
         self.assertEqual(r.as_dict()["planner"], "best_constant")
+
+    def test_the_learned_planner_chooses_from_the_plan(self):
+        # The shipped flip 0 mm model as the planner: the first cell is its
+        # choice for this object under this plan.
+        model, _ = SuccessModel.load(MODELS_DIR / "planner_flip+0.json")
+        obj = load_catalogue()[OBJECT]
+        with tempfile.TemporaryDirectory() as d:
+            network, _ = load_weights(constant_weights(Path(d) / "w.pt", 0.28,
+                                                       -0.12))
+        r = learn(with_target(load_scenario(name="Fast"), Target("flip")), obj,
+                  network, ik=ArmIk(), max_throws=2, progress=None,
+                  planner=Planner("learned", "test", model=model))
+        expected = choose(model.success_maps(
+            planner_features(obj, r.plan.as_dict()))[0])
+        self.assertEqual((r.planner, r.start_cell), ("learned", expected))
+        self.assertEqual(r.attempts[0].chosen_by, "learned")
 
 
 class TestCommandErrors(unittest.TestCase):

@@ -135,6 +135,12 @@ class FileTest(unittest.TestCase):
             planner = load_planner(Target("flip"), Path(d))
             self.assertEqual(planner.name, "learned")
             self.assertIs(planner.model.__class__, SuccessModel)
+            # Where the learned planner does not win, the paper's network.
+            model.save(Path(d) / "planner_flip+30.json", report | {
+                "by_geometry": {"learned": 0.5, "best_constant": 0.6,
+                                "paper_network": 0.3}})
+            self.assertIs(load_planner(Target("flip", 30.0), Path(d)),
+                          PAPER_NETWORK)
             # No planner file for keep, none ever for `any`.
             self.assertIs(load_planner(Target("keep"), Path(d)), PAPER_NETWORK)
             self.assertIs(load_planner(Target("any"), Path(d)), PAPER_NETWORK)

@@ -50,7 +50,7 @@ class Attempt:
     # The plan the throw waited under (throw_catch.CatchPlan; not reported).
     plan: CatchPlan | None = None
     # Who chose its cell: the search's first cell's chooser
-    # (learning/planner.py PLANNERS) or "search".
+    # (learning/planner.py Planner.name) or "search".
     chosen_by: str | None = None
 
     @property
@@ -98,7 +98,7 @@ class LearningResult:
     first_plan: CatchPlan | None = None  # the predicted flight's, if replaced
     at_release: bool = False  # each throw planned when it released the object
     search: str = "wavefront"  # the search's rule: one of search.SEARCHES
-    # Who chose the search's first cell (learning/planner.py PLANNERS).
+    # Who chose the search's first cell (learning/planner.py Planner.name).
     planner: str = "paper_network"
     target: dict | None = None  # the scenario's (planning/grasp.Target)
     start_grasp: dict | None = None  # how the object lay before the throw

@@ -78,7 +78,7 @@ _CATCH_POINT = ("t_s", "p_WO", "axis_W", "v_catch", "tilt")
 MODES = ("watch", "first-throw", "at-release")
 # Fields an entry may lack (older libraries): they read as None.
 _OPTIONAL = ("mode", "search", "chosen_by")
-# Who can have chosen a learned cell (learning/planner.py PLANNERS, then the
+# Who can have chosen a learned cell (learning/planner.py Planner.name, then the
 # search).
 CHOSEN_BY = ("learned", "best_constant", "paper_network", "search")
 
@@ -102,7 +102,7 @@ class LearnedEntry:
     throws: int
     mode: str | None = None    # one of MODES; None: not recorded
     search: str | None = None  # wavefront or map-prior; None: not recorded
-    # Who chose the catching cell (learning/planner.py PLANNERS, or
+    # Who chose the catching cell (learning/planner.py Planner.name, or
     # "search"); None: not recorded.
     chosen_by: str | None = None
 

@@ -316,8 +316,9 @@ def judge(data: PlannerData, *, seed: int = 0, epochs: int = EPOCHS,
                          ("by_object", [o.partition("@")[0]
                                         for o in data.objects])):
         hits = {name: [] for name in CHOOSERS}
-        for train, held_out in splits(groups):
-            caught = data.caught
+        folds = splits(groups)
+        caught = data.caught
+        for train, held_out in folds:
             model = SuccessModel().fit(data.features[train], caught[train],
                                        seed=seed, epochs=epochs)
             learned = model.success_maps(data.features[held_out])
@@ -330,7 +331,7 @@ def judge(data: PlannerData, *, seed: int = 0, epochs: int = EPOCHS,
                 hits["ceiling"].append(caught[m].any())
             if progress is not None:
                 progress()
-        report[kind] = {"splits": len(splits(groups)),
+        report[kind] = {"splits": len(folds),
                         "maps": len(hits["learned"])} | {
             name: round(float(np.mean(h)), 4) for name, h in hits.items()}
     return report
@@ -388,16 +389,12 @@ def _target(provenance: dict) -> dict:
 
 
 # ---- the planner the learning phase uses -------------------------------------
-# Who picks a search's first cell: the learned planner, the best constant
-# cell, or the paper's network (its output's nearest cell).
-PLANNERS = ("learned", "best_constant", "paper_network")
-
-
 @dataclass
 class Planner:
     """A chooser of a search's first cell, with what it needs: the model,
     or a constant cell (studies and tests: `winner` never ships one)."""
-    name: str                      # one of PLANNERS
+    # learned, best_constant or paper_network (library.CHOSEN_BY)
+    name: str
     source: str                    # the planner file, or "none"
     model: SuccessModel | None = None
     cell: tuple | None = None
@@ -441,10 +438,9 @@ def load_planner(target, models_dir: Path | None = None) -> Planner:
     model, report = SuccessModel.load(path)
     try:
         name = winner(report)
-        cell = tuple(int(c) for c in report["best_constant_cell"])
-    except (KeyError, TypeError, ValueError):
-        raise InputError(f"{path}: metadata: not a planner report with "
-                         "by_geometry rates and best_constant_cell, expected "
+    except (KeyError, TypeError):
+        raise InputError(f"{path}: metadata: no by_geometry rates, expected "
                          "the report `regrasp-drake train --target` writes"
                          ) from None
-    return Planner(name, str(path), model=model, cell=cell)
+    return Planner(name, str(path), model=model) if name == "learned" \
+        else PAPER_NETWORK
