@@ -197,6 +197,15 @@ class TargetSetsTest(unittest.TestCase):
                                  only=COARSE[:1], progress=False)
             self.assertIn("regrasp.target is", str(e.exception))
 
+    def test_all_targets_with_a_target_refused(self):
+        done = subprocess.run(
+            [sys.executable, "-m", "regrasp_drake.cli", "dataset",
+             "--all-targets", "--target", "flip"], capture_output=True,
+            text=True, cwd=REPO)
+        self.assertEqual(done.returncode, 2)
+        self.assertIn("--all-targets: got it with --target flip",
+                      done.stderr)
+
 
 class GenerateTest(unittest.TestCase):
     """Two objects on a coarse grid: serial, and with 2 workers killed
