@@ -98,9 +98,20 @@ class ChoiceTest(unittest.TestCase):
         self.assertFalse(data.caught[k][best_constant(data.caught[train])])
 
     def test_judging(self):
-        report = judge(self.data)
+        choices = {}
+        report = judge(self.data, choices=choices)
         for kind, n in (("by_geometry", 4), ("by_object", 16)):
             figures = report[kind]
+            # the cells it reports picking give its rates, map by map
+            picked = choices[kind]
+            self.assertEqual(sorted(picked), sorted(self.data.objects))
+            for chooser in ("learned", "paper_network", "best_constant"):
+                hits = [self.data.caught[self.data.objects.index(name)][
+                    picked[name][chooser]] for name in picked]
+                self.assertAlmostEqual(figures[chooser], np.mean(hits), 4)
+            for name, cells in picked.items():
+                m = self.data.objects.index(name)
+                self.assertEqual(cells["ceiling"], self.data.labels[m])
             self.assertEqual(figures["splits"], n)
             self.assertEqual(figures["maps"], 16)
             self.assertEqual(figures["ceiling"], 1.0)

@@ -307,10 +307,13 @@ def _paper_network_cells(data: PlannerData, train, held_out, seed) -> list:
 
 
 def judge(data: PlannerData, *, seed: int = 0, epochs: int = EPOCHS,
-          progress=None) -> dict:
+          progress=None, choices: dict | None = None) -> dict:
     """Each chooser's success rate over the held-out maps of the splits by
     geometry and by object (module docstring), and the number of splits.
-    progress: called once a split is done (e.g. a tqdm bar's update)."""
+    progress: called once a split is done (e.g. a tqdm bar's update);
+    choices: a dict filled with the cell each chooser picked for each
+    held-out map, choices[kind][map name][chooser] (the ceiling's: the
+    held-out map's most robust cell, labels.py, or None when it has none)."""
     report = {}
     for kind, groups in (("by_geometry", data.geometries),
                          ("by_object", [o.partition("@")[0]
@@ -325,10 +328,15 @@ def judge(data: PlannerData, *, seed: int = 0, epochs: int = EPOCHS,
             constant = best_constant(caught[train])
             paper = _paper_network_cells(data, train, held_out, seed)
             for k, m in enumerate(held_out):
-                hits["learned"].append(caught[m][choose(learned[k])])
-                hits["paper_network"].append(caught[m][paper[k]])
-                hits["best_constant"].append(caught[m][constant])
+                picked = {"learned": choose(learned[k]),
+                          "paper_network": tuple(paper[k]),
+                          "best_constant": constant}
+                for name, cell in picked.items():
+                    hits[name].append(caught[m][cell])
                 hits["ceiling"].append(caught[m].any())
+                if choices is not None:
+                    choices.setdefault(kind, {})[data.objects[m]] = picked | {
+                        "ceiling": data.labels[m]}
             if progress is not None:
                 progress()
         report[kind] = {"splits": len(folds),

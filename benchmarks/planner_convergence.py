@@ -1,0 +1,173 @@
+"""Are the learned planner's figures a property of the objects, or of the
+catch's time step? A target data set's maps computed again at a finer step,
+and the planner's judging scored on both.
+
+    .venv/bin/python benchmarks/planner_convergence.py --target flip+0
+        [--objects NAME ...] [--step-ms 0.25] [--workers 2]
+        [--out models/results/planner_convergence_flip+0.json]
+
+For the target's data set (models/dataset_<target>, made at the shipped
+1 ms catch step) and the chosen objects (default: every map the best
+constant cell fails, and as many of those it holds, in the data set's
+order): the same entries computed again with only the catch's time step
+changed (`dataset.generate` on the data set's own scenario; resumable, in
+out/planner_convergence/<target>_<step>ms/). Then, per map and over them,
+apart for the lopsided objects (an off-axis centre of mass: the grasp has a
+side, planning/grasp.py) and the round ones:
+  - the cells with the same outcome at both steps, against the agreement
+    two unrelated maps with the same rates would show by chance;
+  - of the cells in the target grasp at 1 ms, the share still in it at the
+    finer step;
+  - the rates of the choosers `regrasp-drake train --target` judges by
+    geometry (learning/planner.py `judge`: each held-out map's learned,
+    paper network and best constant cell, and the ceiling, any cell), at
+    both steps.
+Prints a table and writes the JSON.
+"""
+
+# regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
+# (regrasp_drake/numerics.py), so that results match across x86-64 machines.
+import regrasp_drake  # noqa: F401, I001 (first, see above)
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from regrasp_drake import atomic_io
+from regrasp_drake.convergence import agreement
+from regrasp_drake.errors import InputError
+from regrasp_drake.learning import dataset
+from regrasp_drake.learning.dataset_files import load_map
+from regrasp_drake.learning.planner import CHOOSERS, PlannerData, judge
+from regrasp_drake.learning.provenance import load_provenance
+from regrasp_drake.paths import MODELS_DIR, REPO_DIR
+from regrasp_drake.planning.grasp import has_side
+from regrasp_drake.station.scenario import load_scenario, with_catch_time_step
+from regrasp_drake.world.objects import resolve_object
+
+OUT_DIR = (REPO_DIR or Path.cwd()) / "out" / "planner_convergence"
+
+
+def default_objects(data: PlannerData) -> list[str]:
+    """Every map the best constant cell of all the maps fails, and as many
+    it holds, each in the data set's order."""
+    counts = data.caught.reshape(len(data.objects), -1)
+    best = counts.sum(axis=0).argmax()
+    held = [o for o, c in zip(data.objects, counts[:, best]) if c]
+    failed = [o for o, c in zip(data.objects, counts[:, best]) if not c]
+    return failed + held[:len(failed)]
+
+
+def scored(maps: dict, picks: dict) -> dict:
+    """Each chooser's rate over `maps` (name -> 10 x 15 booleans) with the
+    cells in `picks` (name -> chooser -> cell); the ceiling is any cell."""
+    rates = {}
+    for chooser in CHOOSERS:
+        if chooser == "ceiling":
+            hits = [m.any() for m in maps.values()]
+        else:
+            hits = [m[tuple(picks[n][chooser])] for n, m in maps.items()]
+        rates[chooser] = round(float(np.mean(hits)), 4) if hits else None
+    return rates
+
+
+def compare(names, coarse: dict, fine: dict, picks: dict) -> dict:
+    """The figures of one group of maps at both steps (module docstring)."""
+    if not names:
+        return {"maps": 0}
+    a = np.stack([coarse[n].ravel() for n in names])
+    b = np.stack([fine[n].ravel() for n in names])
+    same = float((a == b).mean())
+    chance = float(np.mean([agreement(x, y)["chance"] / x.size
+                            for x, y in zip(a, b)]))
+    kept = float(b[a].mean()) if a.any() else None
+    return {"maps": len(names),
+            "cells_same": round(same, 4), "cells_same_by_chance": round(chance, 4),
+            "cells_in_target": [round(float(a.mean()), 4),
+                                round(float(b.mean()), 4)],
+            "in_target_still_at_finer_step": (None if kept is None
+                                              else round(kept, 4)),
+            "coarse": scored({n: coarse[n] for n in names}, picks),
+            "fine": scored({n: fine[n] for n in names}, picks)}
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--target", default="flip+0",
+                        help="a target data set in models/ (flip+0, keep-30, ...)")
+    parser.add_argument("--objects", nargs="+", metavar="NAME")
+    parser.add_argument("--step-ms", type=float, default=0.25)
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--out", type=Path)
+    args = parser.parse_args(argv)
+    data_dir = MODELS_DIR / f"dataset_{args.target}"
+    try:
+        if not (data_dir / "maps.npz").exists():
+            raise InputError(f"--target: {args.target!r}: no data set "
+                             f"{data_dir}, expected one of models/dataset_*")
+        if not 0.05 <= args.step_ms < 1.0:
+            raise InputError(f"--step-ms: got {args.step_ms}, expected a "
+                             "step finer than the data sets' 1 ms, >= 0.05")
+        data = PlannerData.load(data_dir)
+        names = args.objects or default_objects(data)
+        unknown = sorted(set(names) - set(data.objects))
+        if unknown:
+            raise InputError(f"--objects: {unknown[0]!r} has no map in "
+                             f"{data_dir}, expected one of its objects")
+    except InputError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    torch.set_num_threads(1)
+    base = load_scenario(text=load_provenance(data_dir / "provenance.json")
+                         ["scenario"])
+    fine_dir = OUT_DIR / f"{args.target}_{args.step_ms:g}ms"
+    dataset.generate(names, fine_dir, workers=args.workers,
+                     scenario=with_catch_time_step(base, args.step_ms / 1e3))
+    coarse = {n: data.caught[data.objects.index(n)] for n in names}
+    fine = {n: load_map(fine_dir, n) for n in names}
+    choices: dict = {}
+    judge(data, choices=choices)
+    picks = choices["by_geometry"]
+    lopsided = [n for n in names if has_side(resolve_object(name=n))]
+    round_ = [n for n in names if n not in lopsided]
+    report = {"target": args.target, "data": str(data_dir.relative_to(
+        REPO_DIR) if REPO_DIR else data_dir), "steps_ms": [1.0, args.step_ms],
+        "fine_maps": str(fine_dir), "objects": names,
+        "all": compare(names, coarse, fine, picks),
+        "lopsided": compare(lopsided, coarse, fine, picks),
+        "round": compare(round_, coarse, fine, picks),
+        "per_map": {n: {"lopsided": n in lopsided,
+                        "cells_in_target": [round(float(coarse[n].mean()), 3),
+                                            round(float(fine[n].mean()), 3)],
+                        "picks": {c: list(map(int, v)) if v else None
+                                  for c, v in picks[n].items()},
+                        "coarse": {c: bool(coarse[n][tuple(v)]) if v else False
+                                   for c, v in picks[n].items()},
+                        "fine": {c: bool(fine[n][tuple(v)]) if v else False
+                                 for c, v in picks[n].items()}}
+                    for n in names}}
+    out = args.out or (MODELS_DIR / "results"
+                       / f"planner_convergence_{args.target}.json")
+    atomic_io.write_json(out, report)
+    print(f"{args.target}: {len(names)} maps at 1 ms and {args.step_ms:g} ms "
+          f"(by geometry; learned / paper / constant / ceiling)")
+    for group in ("all", "lopsided", "round"):
+        g = report[group]
+        if not g["maps"]:
+            continue
+        rates = " | ".join(
+            f"{step} " + " / ".join(f"{g[step][c]:.3f}" for c in CHOOSERS)
+            for step in ("coarse", "fine"))
+        print(f"  {group:8s} {g['maps']:2d} maps: cells same "
+              f"{g['cells_same']:.3f} (chance {g['cells_same_by_chance']:.3f})"
+              f", in target at 1 ms still so {g['in_target_still_at_finer_step']}"
+              f"; {rates}")
+    print(f"wrote {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
