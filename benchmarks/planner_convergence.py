@@ -3,7 +3,7 @@ catch's time step? A target data set's maps computed again at a finer step,
 and the planner's judging scored on both.
 
     .venv/bin/python benchmarks/planner_convergence.py --target flip+0
-        [--objects NAME ...] [--step-ms 0.25] [--workers 2]
+        [--objects NAME ...] [--steps-ms 0.25 [0.125 ...]] [--workers 2]
         [--out models/results/planner_convergence_flip+0.json]
 
 For the target's data set (models/dataset_<target>, made at the shipped
@@ -11,25 +11,27 @@ For the target's data set (models/dataset_<target>, made at the shipped
 constant cell fails, and as many of those it holds, in the data set's
 order): the same entries computed again with only the catch's time step
 changed (`dataset.generate` on the data set's own scenario; resumable, in
-out/planner_convergence/<target>_<step>ms/). Then, per map and over them,
-apart for the lopsided objects (an off-axis centre of mass: the grasp has a
-side, planning/grasp.py) and the round ones:
+out/planner_convergence/<target>_<step>ms/, for each finer step). Then
+for each step against the next coarser one, per map and over them, apart
+for the lopsided objects (an off-axis centre of mass: the grasp has a side,
+planning/grasp.py) and the round ones:
   - the cells with the same outcome at both steps, against the agreement
     two unrelated maps with the same rates would show by chance;
-  - of the cells in the target grasp at 1 ms, the share still in it at the
-    finer step;
+  - of the cells in the target grasp at the coarser step, the share still
+    in it at the finer one;
   - the rates of the choosers `regrasp-drake train --target` judges by
     geometry (learning/planner.py `judge`: each held-out map's learned,
     paper network and best constant cell, and the ceiling, any cell), at
     both steps.
-Prints a table and writes the JSON.
+And per map: each chooser's cell (the ceiling's: the 1 ms map's most
+robust cell, learning/labels.py) and whether it is in the target grasp at
+each step. Prints a table and writes the JSON.
 """
 
 # regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
 # (regrasp_drake/numerics.py), so that results match across x86-64 machines.
 import regrasp_drake  # noqa: F401, I001 (first, see above)
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -99,7 +101,8 @@ def main(argv=None) -> int:
     parser.add_argument("--target", default="flip+0",
                         help="a target data set in models/ (flip+0, keep-30, ...)")
     parser.add_argument("--objects", nargs="+", metavar="NAME")
-    parser.add_argument("--step-ms", type=float, default=0.25)
+    parser.add_argument("--steps-ms", type=float, nargs="+", default=[0.25],
+                        metavar="MS", help="finer catch steps than 1 ms")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path)
     args = parser.parse_args(argv)
@@ -108,9 +111,17 @@ def main(argv=None) -> int:
         if not (data_dir / "maps.npz").exists():
             raise InputError(f"--target: {args.target!r}: no data set "
                              f"{data_dir}, expected one of models/dataset_*")
-        if not 0.05 <= args.step_ms < 1.0:
-            raise InputError(f"--step-ms: got {args.step_ms}, expected a "
-                             "step finer than the data sets' 1 ms, >= 0.05")
+        for step in args.steps_ms:
+            if not 0.05 <= step < 1.0:
+                raise InputError(f"--steps-ms: got {step}, expected steps "
+                                 "finer than the data sets' 1 ms, >= 0.05")
+        base = load_scenario(text=load_provenance(
+            data_dir / "provenance.json")["scenario"])
+        throw_ms = 1e3 * base.plant_config.time_step
+        for step in args.steps_ms:
+            if step < throw_ms - 1e-9:
+                raise InputError(f"--steps-ms: got {step}, expected steps at "
+                                 f"least the throw's plant step, {throw_ms:g} ms")
         data = PlannerData.load(data_dir)
         names = args.objects or default_objects(data)
         unknown = sorted(set(names) - set(data.objects))
@@ -121,50 +132,56 @@ def main(argv=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     torch.set_num_threads(1)
-    base = load_scenario(text=load_provenance(data_dir / "provenance.json")
-                         ["scenario"])
-    fine_dir = OUT_DIR / f"{args.target}_{args.step_ms:g}ms"
-    dataset.generate(names, fine_dir, workers=args.workers,
-                     scenario=with_catch_time_step(base, args.step_ms / 1e3))
-    coarse = {n: data.caught[data.objects.index(n)] for n in names}
-    fine = {n: load_map(fine_dir, n) for n in names}
+    steps = [1.0] + sorted(set(args.steps_ms), reverse=True)
+    maps = {1.0: {n: data.caught[data.objects.index(n)] for n in names}}
+    for step in steps[1:]:
+        fine_dir = OUT_DIR / f"{args.target}_{step:g}ms"
+        dataset.generate(names, fine_dir, workers=args.workers,
+                         scenario=with_catch_time_step(base, step / 1e3))
+        maps[step] = {n: load_map(fine_dir, n) for n in names}
     choices: dict = {}
     judge(data, choices=choices)
     picks = choices["by_geometry"]
     lopsided = [n for n in names if has_side(resolve_object(name=n))]
     round_ = [n for n in names if n not in lopsided]
     report = {"target": args.target, "data": str(data_dir.relative_to(
-        REPO_DIR) if REPO_DIR else data_dir), "steps_ms": [1.0, args.step_ms],
-        "fine_maps": str(fine_dir), "objects": names,
-        "all": compare(names, coarse, fine, picks),
-        "lopsided": compare(lopsided, coarse, fine, picks),
-        "round": compare(round_, coarse, fine, picks),
-        "per_map": {n: {"lopsided": n in lopsided,
-                        "cells_in_target": [round(float(coarse[n].mean()), 3),
-                                            round(float(fine[n].mean()), 3)],
-                        "picks": {c: list(map(int, v)) if v else None
-                                  for c, v in picks[n].items()},
-                        "coarse": {c: bool(coarse[n][tuple(v)]) if v else False
-                                   for c, v in picks[n].items()},
-                        "fine": {c: bool(fine[n][tuple(v)]) if v else False
-                                 for c, v in picks[n].items()}}
-                    for n in names}}
+        REPO_DIR) if REPO_DIR else data_dir), "steps_ms": steps,
+        "objects": names, "lopsided": lopsided, "pairs": []}
+    print(f"{args.target}: {len(names)} maps ({len(lopsided)} lopsided); "
+          "the choosers by geometry: learned / paper / constant / ceiling")
+    for coarse_step, fine_step in zip(steps, steps[1:]):
+        coarse, fine = maps[coarse_step], maps[fine_step]
+        pair = {"steps_ms": [coarse_step, fine_step]} | {
+            group: compare(group_names, coarse, fine, picks)
+            for group, group_names in (("all", names), ("lopsided", lopsided),
+                                       ("round", round_))}
+        report["pairs"].append(pair)
+        print(f"{coarse_step:g} ms vs {fine_step:g} ms:")
+        for group in ("all", "lopsided", "round"):
+            g = pair[group]
+            if not g["maps"]:
+                continue
+            rates = " | ".join(
+                f"{step:g} ms " + " / ".join(f"{g[key][c]:.3f}" for c in CHOOSERS)
+                for key, step in (("coarse", coarse_step), ("fine", fine_step)))
+            print(f"  {group:8s} {g['maps']:2d} maps: cells same "
+                  f"{g['cells_same']:.3f} (chance {g['cells_same_by_chance']:.3f})"
+                  f"; in target at {coarse_step:g} ms still so "
+                  f"{g['in_target_still_at_finer_step']}; {rates}")
+    report["per_map"] = {
+        n: {"lopsided": n in lopsided,
+            "picks": {c: list(map(int, v)) if v else None
+                      for c, v in picks[n].items()},
+            "cells_in_target": {f"{s:g}": round(float(maps[s][n].mean()), 3)
+                                for s in steps},
+            "picked_in_target": {f"{s:g}": {c: bool(maps[s][n][tuple(v)])
+                                            if v else False
+                                            for c, v in picks[n].items()}
+                                 for s in steps}}
+        for n in names}
     out = args.out or (MODELS_DIR / "results"
                        / f"planner_convergence_{args.target}.json")
     atomic_io.write_json(out, report)
-    print(f"{args.target}: {len(names)} maps at 1 ms and {args.step_ms:g} ms "
-          f"(by geometry; learned / paper / constant / ceiling)")
-    for group in ("all", "lopsided", "round"):
-        g = report[group]
-        if not g["maps"]:
-            continue
-        rates = " | ".join(
-            f"{step} " + " / ".join(f"{g[step][c]:.3f}" for c in CHOOSERS)
-            for step in ("coarse", "fine"))
-        print(f"  {group:8s} {g['maps']:2d} maps: cells same "
-              f"{g['cells_same']:.3f} (chance {g['cells_same_by_chance']:.3f})"
-              f", in target at 1 ms still so {g['in_target_still_at_finer_step']}"
-              f"; {rates}")
     print(f"wrote {out}")
     return 0
 

@@ -267,5 +267,46 @@ class BenchmarkTest(unittest.TestCase):
         self.assertIn("--targets: got 'flip+7'", done.stderr)
 
 
+class ConvergenceBenchmarkTest(unittest.TestCase):
+    """benchmarks/planner_convergence.py: its figures on maps made up
+    here, and its refusals (exit 2, naming the field)."""
+
+    @classmethod
+    def setUpClass(cls):
+        sys.path.insert(0, str(REPO / "benchmarks"))
+        import planner_convergence
+        cls.bench = planner_convergence
+
+    def test_figures(self):
+        coarse = {n: np.zeros(SHAPE, bool) for n in ("a", "b")}
+        fine = {n: np.zeros(SHAPE, bool) for n in ("a", "b")}
+        coarse["a"][2, 3] = coarse["a"][5, 5] = True  # both in target at 1 ms
+        fine["a"][2, 3] = True                        # one of them still so
+        coarse["b"][0, 0] = True                      # b: lost at the finer step
+        picks = {n: {"learned": (2, 3), "paper_network": (5, 5),
+                     "best_constant": (0, 0)} for n in ("a", "b")}
+        figures = self.bench.compare(["a", "b"], coarse, fine, picks)
+        self.assertEqual(figures["maps"], 2)
+        self.assertAlmostEqual(figures["cells_same"], 1 - 2 / 300, 4)
+        self.assertAlmostEqual(figures["in_target_still_at_finer_step"], 1 / 3, 4)
+        self.assertEqual(figures["coarse"], {"learned": 0.5, "paper_network": 0.5,
+                                             "best_constant": 0.5, "ceiling": 1.0})
+        self.assertEqual(figures["fine"], {"learned": 0.5, "paper_network": 0.0,
+                                           "best_constant": 0.0, "ceiling": 0.5})
+
+    def test_refusals(self):
+        for args, expected in ((["--target", "flip+7"], "--target: 'flip+7'"),
+                               (["--steps-ms", "2"], "--steps-ms: got 2.0"),
+                               (["--steps-ms", "0.125"],
+                                "least the throw's plant step, 0.25 ms"),
+                               (["--objects", "no-such"], "--objects: 'no-such'")):
+            done = subprocess.run(
+                [sys.executable, "benchmarks/planner_convergence.py", *args],
+                capture_output=True, text=True, cwd=REPO)
+            self.assertEqual(done.returncode, 2, done.stderr)
+            self.assertIn(expected, done.stderr)
+            self.assertEqual(len(done.stderr.strip().splitlines()), 1)
+
+
 if __name__ == "__main__":
     unittest.main()

@@ -49,6 +49,14 @@ from regrasp_drake.world.objects import resolve_object
 HERE = Path(__file__).resolve().parent
 
 
+def shown(path: Path) -> str:
+    """A path from the checkout's top when inside it."""
+    path = path.resolve()
+    if REPO_DIR is not None and path.is_relative_to(REPO_DIR):
+        return str(path.relative_to(REPO_DIR))
+    return str(path)
+
+
 def both(base: PlannerData, variant: PlannerData):
     """The objects both data sets map, and per placement their features
     and maps in that order."""
@@ -100,7 +108,7 @@ def main(argv=None) -> int:
         print(g, flush=True)
     groups = {"all": np.ones(len(names), bool), "lopsided": lopsided,
               "round": ~lopsided}
-    report = {"base": str(args.base), "variant": str(args.variant),
+    report = {"base": shown(args.base), "variant": shown(args.variant),
               "maps": len(names), "split": "by geometry",
               "cells_in_target": {"base": round(float(caught[0].mean()), 4),
                                   "variant": round(float(caught[1].mean()), 4)},
