@@ -7,9 +7,8 @@ and the planner's judging scored on both.
         [--out models/results/planner_convergence_flip+0.json]
 
 For the target's data set (models/dataset_<target>, made at the shipped
-1 ms catch step) and the chosen objects (default: every map the best
-constant cell fails, and as many of those it holds, in the data set's
-order): the same entries computed again with only the catch's time step
+1 ms catch step) and the chosen objects (default: the first 11 maps the
+best constant cell fails, and as many it holds, in the data set's order): the same entries computed again with only the catch's time step
 changed (`dataset.generate` on the data set's own scenario; resumable, in
 out/planner_convergence/<target>_<step>ms/, for each finer step). Then
 for each step against the next coarser one, per map and over them, apart
@@ -50,16 +49,19 @@ from regrasp_drake.planning.grasp import has_side
 from regrasp_drake.station.scenario import load_scenario, with_catch_time_step
 from regrasp_drake.world.objects import resolve_object
 
+# At most this many maps the best constant cell fails, and as many it holds.
+DEFAULT_EACH = 11
 OUT_DIR = (REPO_DIR or Path.cwd()) / "out" / "planner_convergence"
 
 
-def default_objects(data: PlannerData) -> list[str]:
-    """Every map the best constant cell of all the maps fails, and as many
-    it holds, each in the data set's order."""
+def default_objects(data: PlannerData, most: int = DEFAULT_EACH) -> list[str]:
+    """The first `most` maps (in the data set's order) that the best
+    constant cell of all the maps fails, and as many it holds."""
     counts = data.caught.reshape(len(data.objects), -1)
     best = counts.sum(axis=0).argmax()
     held = [o for o, c in zip(data.objects, counts[:, best]) if c]
     failed = [o for o, c in zip(data.objects, counts[:, best]) if not c]
+    failed = failed[:most]
     return failed + held[:len(failed)]
 
 
