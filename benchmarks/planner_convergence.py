@@ -113,14 +113,17 @@ def main(argv=None) -> int:
         if not (data_dir / "maps.npz").exists():
             raise InputError(f"--target: {args.target!r}: no data set "
                              f"{data_dir}, expected one of models/dataset_*")
-        for step in args.steps_ms:
-            if not 0.05 <= step < 1.0:
-                raise InputError(f"--steps-ms: got {step}, expected steps "
-                                 "finer than the data sets' 1 ms, >= 0.05")
+        if args.workers < 1:
+            raise InputError(f"--workers: got {args.workers}, expected an "
+                             "integer >= 1")
         base = load_scenario(text=load_provenance(
             data_dir / "provenance.json")["scenario"])
         throw_ms = 1e3 * base.plant_config.time_step
+        coarse_ms = 1e3 * (base.catch_time_step_s or base.plant_config.time_step)
         for step in args.steps_ms:
+            if not step < coarse_ms:
+                raise InputError(f"--steps-ms: got {step}, expected steps "
+                                 f"finer than the data set's {coarse_ms:g} ms")
             if step < throw_ms - 1e-9:
                 raise InputError(f"--steps-ms: got {step}, expected steps at "
                                  f"least the throw's plant step, {throw_ms:g} ms")
@@ -134,8 +137,8 @@ def main(argv=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     torch.set_num_threads(1)
-    steps = [1.0] + sorted(set(args.steps_ms), reverse=True)
-    maps = {1.0: {n: data.caught[data.objects.index(n)] for n in names}}
+    steps = [coarse_ms] + sorted(set(args.steps_ms), reverse=True)
+    maps = {coarse_ms: {n: data.caught[data.objects.index(n)] for n in names}}
     for step in steps[1:]:
         fine_dir = OUT_DIR / f"{args.target}_{step:g}ms"
         dataset.generate(names, fine_dir, workers=args.workers,

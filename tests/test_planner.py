@@ -296,7 +296,8 @@ class ConvergenceBenchmarkTest(unittest.TestCase):
 
     def test_refusals(self):
         for args, expected in ((["--target", "flip+7"], "--target: 'flip+7'"),
-                               (["--steps-ms", "2"], "--steps-ms: got 2.0"),
+                               (["--steps-ms", "2"], "finer than the data set's 1 ms"),
+                               (["--workers", "0"], "--workers: got 0"),
                                (["--steps-ms", "0.125"],
                                 "least the throw's plant step, 0.25 ms"),
                                (["--objects", "no-such"], "--objects: 'no-such'")):
