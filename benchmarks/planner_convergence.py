@@ -8,8 +8,9 @@ and the planner's judging scored on both.
 
 For the target's data set (models/dataset_<target>, made at the shipped
 1 ms catch step) and the chosen objects (default: the first 11 maps the
-best constant cell fails, and as many it holds, in the data set's order): the same entries computed again with only the catch's time step
-changed (`dataset.generate` on the data set's own scenario; resumable, in
+best constant cell fails, and as many it holds, in the data set's order):
+the same entries computed again with only the catch's time step changed
+(`dataset.generate` on the data set's own scenario; resumable, in
 out/planner_convergence/<target>_<step>ms/, for each finer step). Then
 for each step against the next coarser one, per map and over them, apart
 for the lopsided objects (an off-axis centre of mass: the grasp has a side,

@@ -285,6 +285,28 @@ def load_json(path, what: str = "JSON file"):
     return _load(path, what, parse_json)
 
 
+def check_format(data, path, expected: str, hint: str = "") -> None:
+    """Refuses a parsed file that is not a mapping tagged `format:
+    expected` (InputError naming the file's format field; hint, e.g. how
+    to make the file again, follows what was expected)."""
+    if not isinstance(data, dict) or data.get("format") != expected:
+        raise field_error(f"{path}: format",
+                          data.get("format") if isinstance(data, dict) else data,
+                          f"{expected!r}{hint}")
+
+
+def load_tagged_json(path, what: str, expected: str, command: str) -> dict:
+    """The JSON file at path that `command` writes, tagged `format:
+    expected` (check_format); InputError naming the file when it is
+    missing, unreadable or not one."""
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"{path}: no such {what} (run `{command}` first)")
+    data = load_json(path, f"{what} (JSON)")
+    check_format(data, path, expected, f" (run `{command}` again)")
+    return data
+
+
 def check_finite(value, field: str = "") -> None:
     """Refuses a non-finite number anywhere in parsed `value` (InputError
     naming its field, dotted from the top)."""

@@ -51,7 +51,7 @@ from pydrake.math import RotationMatrix
 from regrasp_drake import atomic_io
 from regrasp_drake import progress as progress_lines
 from regrasp_drake.errors import InputError, field_error
-from regrasp_drake.input_files import load_json
+from regrasp_drake.input_files import load_json, load_tagged_json
 from regrasp_drake.planning.free_flight import (
     as_watched,
     central_inertia,
@@ -237,15 +237,8 @@ class FlightPredictor:
         field for a file that is not one (read within the limits of
         input_files: size, nesting, finite numbers)."""
         path = Path(path)
-        if not path.exists():
-            raise InputError(f"{path}: no such flight predictor file (run "
-                             "`regrasp-drake train-flight` first)")
-        data = load_json(path, "flight predictor file (JSON)")
-        if not isinstance(data, dict) or data.get("format") != _FORMAT:
-            raise field_error(f"{path}: format", data.get("format") if
-                              isinstance(data, dict) else data,
-                              f"{_FORMAT!r} (run `regrasp-drake "
-                              "train-flight` again)")
+        data = load_tagged_json(path, "flight predictor file", _FORMAT,
+                                "regrasp-drake train-flight")
         for key in ("t_free_s", "separation_s"):
             t = data.get(key)
             if type(t) not in (int, float) or not 0 < t < 10:

@@ -58,7 +58,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 
 from regrasp_drake import atomic_io
 from regrasp_drake.errors import InputError, field_error
-from regrasp_drake.input_files import load_yaml
+from regrasp_drake.input_files import check_format, load_yaml
 from regrasp_drake.learning.search import SEARCHES
 from regrasp_drake.parameter_space import (
     H_CATCH_RANGE,
@@ -123,10 +123,7 @@ def load_library(path) -> dict[str, LearnedEntry]:
     if not path.exists():
         return {}
     data = load_yaml(path, "YAML regrasp library")
-    if not isinstance(data, dict) or data.get("format") != _FORMAT:
-        raise field_error(f"{path}: format",
-                          data.get("format") if isinstance(data, dict) else data,
-                          repr(_FORMAT))
+    check_format(data, path, _FORMAT)
     if data.get("version") != _VERSION:
         raise field_error(f"{path}: version", data.get("version"), str(_VERSION))
     unknown = [k for k in data if k not in ("format", "version", "objects")]

@@ -38,7 +38,7 @@ import torch
 
 from regrasp_drake import atomic_io
 from regrasp_drake.errors import InputError, field_error
-from regrasp_drake.input_files import load_json
+from regrasp_drake.input_files import load_tagged_json
 from regrasp_drake.learning.dataset_files import FEATURE_NAMES, read_plan
 from regrasp_drake.learning.labels import SHAPE, label_cell
 from regrasp_drake.learning.provenance import load_provenance
@@ -216,13 +216,8 @@ class SuccessModel(torch.nn.Module):
         """The model and metadata `save` wrote; InputError naming the file
         and the field for anything else."""
         path = Path(path)
-        if not path.exists():
-            raise InputError(f"{path}: no such planner file (run "
-                             "`regrasp-drake train --target KIND` first)")
-        data = load_json(path, "planner file (JSON)")
-        if not isinstance(data, dict) or data.get("format") != _FORMAT:
-            raise field_error(f"{path}: format", data.get("format") if
-                              isinstance(data, dict) else data, repr(_FORMAT))
+        data = load_tagged_json(path, "planner file", _FORMAT,
+                                "regrasp-drake train --target KIND")
         if data.get("features") != list(PLANNER_FEATURES):
             raise field_error(f"{path}: features", data.get("features"),
                               f"{list(PLANNER_FEATURES)}")

@@ -7,9 +7,10 @@ mass: their grasp has a side, planning/grasp.py) apart from round ones.
 Per target and group: the maps, the best constant cell of all the maps
 (in sample) and how many maps it holds in the target grasp, the ceiling
 (maps with any cell in it), the share of cells in it, and every missing
-cell's cause from its row in cells/<entry>.jsonl: dropped (or not held),
-side (held the wrong side out: a lopsided object's offset not where the
-target turns it), tilted (axis more than 20 degrees off), offset (more
+cell's cause from its row in cells/<entry>.jsonl, as the learning phase
+names it (planning/grasp.py `miss_reason`): dropped, wrong way round (the
+axis reversed, or for a lopsided object the side not where the target
+turns it), tilted (the axis more than 20 degrees off), off offset (more
 than 10 mm off). Prints a table and writes misses.json here.
 """
 
@@ -31,19 +32,13 @@ from regrasp_drake.world.objects import resolve_object
 
 HERE = Path(__file__).resolve().parent
 TARGETS = ["keep-30", "keep+0", "keep+30", "flip-30", "flip+0", "flip+30"]
-CAUSES = ("dropped", "side", "tilted", "offset")
+CAUSES = ("dropped", "wrong_way_round", "tilted", "off_offset")
 
 
 def cause(row: dict) -> str:
-    """Why a cell's catch missed the target grasp (module docstring)."""
-    if row["outcome"] != "wrong_grasp":
-        return "dropped"
-    error = row.get("grasp_error") or {}
-    if error.get("side_ok") is False:
-        return "side"
-    if (error.get("axis_error_deg") or 0.0) > grasp.AXIS_TOLERANCE_DEG:
-        return "tilted"
-    return "offset"
+    """Why a cell's catch missed the target grasp (grasp.miss_reason)."""
+    held = row["outcome"] in ("caught", "wrong_grasp")
+    return grasp.miss_reason(held, row.get("grasp_error")) or "dropped"
 
 
 def main() -> int:
@@ -70,7 +65,7 @@ def main() -> int:
                 "cells_in_target": round(float(caught.mean()), 4),
                 "misses": {c: misses[c] for c in CAUSES}}
     print("| Target | Group | Maps | Best constant holds | Ceiling | Cells in "
-          "target | Missed cells: dropped / side / tilted / offset |")
+          "target | Missed cells: dropped / wrong way round / tilted / off offset |")
     print("|---|---|---|---|---|---|---|")
     for target, groups in report.items():
         for group in ("round", "lopsided"):

@@ -28,7 +28,6 @@ ones. Prints the figures and writes placement.json here.
 # regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels.
 import regrasp_drake  # noqa: F401, I001
 import argparse
-import json
 import sys
 from pathlib import Path
 
