@@ -35,6 +35,7 @@ import numpy as np
 import torch
 
 from regrasp_drake import atomic_io
+from regrasp_drake.errors import InputError
 from regrasp_drake.learning.planner import (
     PlannerData,
     SuccessModel,
@@ -123,4 +124,8 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except InputError as e:  # a data set missing or malformed: one line
+        print(f"error: {e}", file=sys.stderr)
+        sys.exit(2)

@@ -28,7 +28,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from regrasp_drake import atomic_io
+from regrasp_drake import atomic_io, grid
+from regrasp_drake.errors import InputError
 from regrasp_drake.learning.dataset_files import load_map
 from regrasp_drake.learning.labels import SHAPE
 from regrasp_drake.learning.planner import PlannerData, SuccessModel, choose
@@ -49,6 +50,17 @@ def main(argv=None) -> int:
     data = PlannerData.load(args.coarse)
     keep = [k for k, n in enumerate(data.objects)
             if all((d / "cells" / f"{n}.jsonl").exists() for d in args.fine)]
+    for d in args.fine:  # a map still being computed would count as misses
+        for k in keep:
+            rows = grid.read_rows(d / "cells" / f"{data.objects[k]}.jsonl")
+            if len(rows) != SHAPE[0] * SHAPE[1]:
+                raise InputError(f"--fine: {d}: {data.objects[k]}'s map has "
+                                 f"{len(rows)} cells, expected all "
+                                 f"{SHAPE[0] * SHAPE[1]} (is it still running?)")
+    if not keep:
+        raise InputError(f"--fine: {' '.join(map(str, args.fine))}: no map of "
+                         f"{args.coarse}'s objects in each, expected the maps "
+                         "benchmarks/planner_convergence.py writes")
     draws = [data.caught[keep].astype(float)] + [
         np.stack([load_map(d, data.objects[k]) for k in keep]) for d in args.fine]
     p = np.mean(draws, axis=0)
@@ -76,4 +88,8 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except InputError as e:  # a data set missing or malformed: one line
+        print(f"error: {e}", file=sys.stderr)
+        sys.exit(2)
