@@ -119,25 +119,28 @@ def _run_to_triggers(shared: Episode, parameters, t_final,
     that part from it at each sample, before the state machine's update at
     that time runs. Returns the run's failure message ("" if none) and the
     h_catch values that never triggered."""
-    ir_levels = shared.diagram.station.GetOutputPort("ir_levels")
-    machine = shared.diagram.controller.state_machine
-    context = shared.simulator.get_context()
-    ir_context = ir_levels.get_system().GetMyContextFromRoot(context)
-    machine_context = machine.GetMyContextFromRoot(context)
     sensors = shared.scenario.sensors
     waiting = sorted({h for h, _ in parameters}, reverse=True)
     message = ""
-    k = round(context.get_time() / sensors.period_s)  # 0, or the release's
+    # 0, or the release's
+    k = round(shared.simulator.get_context().get_time() / sensors.period_s)
     while waiting:
         check_interrupt()
         k += 1
         message = shared.advance_to_outcome(min(k * sensors.period_s,
                                                 t_final))
+        # The diagram it runs in (another from the landing's handover on).
+        ir_levels = shared.diagram.station.GetOutputPort("ir_levels")
+        machine = shared.diagram.controller.state_machine
+        context = shared.simulator.get_context()
         if (message or shared.outcome() != "running"
                 or context.get_time() >= t_final):
             break
-        if machine.GetOutputPort("phase").Eval(machine_context)[0] != Phase.WAIT:
+        phase = machine.GetOutputPort("phase").Eval(
+            machine.GetMyContextFromRoot(context))[0]
+        if phase != Phase.WAIT:
             continue
+        ir_context = ir_levels.get_system().GetMyContextFromRoot(context)
         # What the state machine's check at this time will read.
         distance = (float(np.min(ir_levels.Eval(ir_context)[3:]))
                     / sensors.levels * sensors.approach_range_m)

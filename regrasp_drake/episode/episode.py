@@ -21,6 +21,7 @@ fixed."""
 
 import dataclasses as dc
 import hashlib
+import math
 import pickle
 import time
 
@@ -50,6 +51,7 @@ from regrasp_drake.station.scenario import (
     Scenario,
     catch_phase_scenario,
     hands_over,
+    landing_phase_scenario,
     scenario_digest,
 )
 from regrasp_drake.station.throw import release_time
@@ -74,24 +76,40 @@ class Handover:
     # The catch parameters of this episode when its throw was simulated
     # for another (ThrowCache): its logs show this episode's from the start.
     parameters: tuple | None = None
+    # The catch's (simulator, diagram, scenario) when handed over again, to
+    # the landing's plant step (Episode.advance_to_outcome), for its logs;
+    # and the landing's (simulator, diagram) when handed back.
+    landed: tuple | None = None
+    settled: tuple[Simulator, EpisodeDiagram] | None = None
 
     def logs(self, after: Logs) -> Logs:
-        """The whole episode's logs: the throw's, then `after`'s (the
-        loggers of the catch's diagram, from the release time on)."""
+        """The whole episode's logs: the throw's, the catch's before the
+        landing when handed over there, then `after`'s (the loggers of the
+        diagram it ended in)."""
         if self.before is None:
             return after
         simulator, episode = self.before
-        first = read_logs(episode.loggers, simulator.get_context())
+        logs = read_logs(episode.loggers, simulator.get_context())
         if self.parameters is not None:
-            first.params = np.tile(np.reshape(self.parameters, (2, 1)),
-                                   (1, first.params.shape[1]))
-        # Both diagrams log the release time: the throw's as its last step
-        # ends, the catch's as its simulator starts there. The first is the
-        # one a run without the handover logs.
-        keep = after.t > first.t[-1]
-        return Logs(**{f.name: np.concatenate(
-            [getattr(first, f.name), getattr(after, f.name)[..., keep]],
-            axis=-1) for f in dc.fields(Logs)})
+            logs.params = np.tile(np.reshape(self.parameters, (2, 1)),
+                                  (1, logs.params.shape[1]))
+        for segment in (self.landed, self.settled):
+            if segment is not None:
+                simulator, episode = segment[:2]
+                logs = _joined(logs, read_logs(episode.loggers,
+                                               simulator.get_context()))
+        return _joined(logs, after)
+
+
+def _joined(first: Logs, then: Logs) -> Logs:
+    """`first`'s logs, then `then`'s after them. Both diagrams log the
+    handover's time: the first as its last step ends, the next as its
+    simulator starts there. The first is the one a run without the
+    handover logs."""
+    keep = then.t > first.t[-1]
+    return Logs(**{f.name: np.concatenate(
+        [getattr(first, f.name), getattr(then, f.name)[..., keep]],
+        axis=-1) for f in dc.fields(Logs)})
 
 
 def hand_over(simulator, episode: EpisodeDiagram, scenario: Scenario,
@@ -117,6 +135,35 @@ def hand_over(simulator, episode: EpisodeDiagram, scenario: Scenario,
     simulator_later = continue_with(simulator, episode, other, later)
     return Handover(simulator_later, other, later,
                     before=(simulator, episode))
+
+
+def landing_time(episode: EpisodeDiagram, context,
+                 scenario: Scenario) -> tuple[float, float]:
+    """When a catch goes on at the landing's plant step, [s]:
+    scenario.landing_lead_s before the object's centre of mass, in free
+    flight from its state in `context`, falls to the height of the palm's
+    grasp pose (its wait pose: the lowering only takes the palm away). Now,
+    if it is not above that height or not falling to it. Also the time of
+    that fall, [s]."""
+    x = episode.station.Eval("object_state", context)
+    z, v_z = x[6], x[12]  # p_WO's and v_WO's z
+    X_WG = episode.controller.grasp_pose.get_output_port().Eval(
+        episode.controller.grasp_pose.GetMyContextFromRoot(context))
+    height = z - X_WG.translation()[2]
+    g = scenario.gravity_m_per_s2
+    t = context.get_time()
+    fall = ((v_z + np.sqrt(v_z ** 2 + 2.0 * g * height)) / g
+            if height > 0.0 and g > 0.0 else 0.0)
+    t_landing = on_sample(t + fall - scenario.landing_lead_s,
+                          scenario.sensors.period_s)
+    return max(t, t_landing), t + fall
+
+
+def on_sample(t: float, period: float) -> float:
+    """The first of the sensors' samples (every `period`, [s]) at or after
+    t, [s]: a handover's time, as the release's (a whole step of either
+    plant ends there, and its events run in the next diagram)."""
+    return math.ceil(t / period - 1e-9) * period
 
 
 class ThrowCache:
@@ -149,6 +196,8 @@ class ThrowCache:
         # key -> (ik, the diagram at the catch's step the throw's episodes
         # go on in, built with arm IK ik)
         self._diagrams = {}
+        # key -> (ik, the diagram at the landing's step, Episode._land)
+        self._landings = {}
         self.hits = 0
 
     def key(self, scenario, obj, perturbation: ThrowPerturbation,
@@ -175,6 +224,8 @@ class ThrowCache:
             del self._kept[next(iter(self._kept))]
         self._diagrams = {k: v for k, v in self._diagrams.items()
                           if k in self._kept}
+        self._landings = {k: v for k, v in self._landings.items()
+                          if k in self._kept}
 
     def resume(self, key, rebuild, X_WG, catch_parameters, ik):
         """A Handover that goes on from the kept throw of `key` in the
@@ -199,9 +250,22 @@ class ThrowCache:
         return Handover(target, other, later, before=(simulator, episode),
                         parameters=tuple(float(p) for p in catch_parameters))
 
+    def landing_diagram(self, episode: "Episode", later: Scenario
+                        ) -> EpisodeDiagram:
+        """The diagram at the landing's step `later` that `episode` goes on
+        in (Episode._land): the one kept with its throw, else built."""
+        key = episode._key
+        kept = self._landings.get(key) if key is not None else None
+        if kept is None or kept[0] is not episode.ik:
+            kept = (episode.ik, episode.build(later))
+            if key is not None and key in self._kept:
+                self._landings[key] = kept
+        return kept[1]
+
     def clear(self) -> None:
         self._kept.clear()
         self._diagrams.clear()
+        self._landings.clear()
 
 
 THROWS = ThrowCache()
@@ -252,6 +316,10 @@ class Episode:
         self.diagram: EpisodeDiagram | None = None
         self.handover: Handover | None = None
         self.message = ""   # a failure's, once the episode failed
+        # The handovers to come through the landing (advance_to_outcome):
+        # [(time [s], what hands over)], made at its first call.
+        self._handovers: list | None = None
+        self._key = None  # its throw's in `throws` (ThrowCache.key)
         self.build_s = 0.0  # the wall time to build and initialise, [s]
         self._recording = meshcat is not None
 
@@ -272,8 +340,9 @@ class Episode:
         (`hand_over`), and kept. The scenario it goes on under is the
         catch's from here."""
         t0 = time.perf_counter()
-        key = self.throws.key(self.scenario, self.obj, self.perturbation,
-                              self.catch_parameters, self.meshcat)
+        key = self._key = self.throws.key(
+            self.scenario, self.obj, self.perturbation,
+            self.catch_parameters, self.meshcat)
         handover = self.throws.resume(key, self.build, self.X_WG,
                                       self.catch_parameters, self.ik)
         if handover is None:
@@ -322,10 +391,60 @@ class Episode:
 
     def advance_to_outcome(self, t_final: float | None = None) -> str:
         """Stage 4: on until the grasp monitor (or a failure) ends the
-        episode, or to t_final, [s]. Returns "" or the failure's message."""
+        episode, or to t_final, [s]. Returns "" or the failure's message.
+
+        Under a grasp target with a landing step of its own
+        (scenario.landing_time_step_s), the catch is handed over to it, state
+        for state, landing_lead_s before the object's predicted fall to the
+        palm (`landing_time`), and back to the catch's step
+        landing_settle_s after that fall, if set."""
+        if t_final is None:
+            t_final = self.scenario.monitor.max_time_s + 1.0
+        if self._handovers is None:
+            self._handovers = self._plan_handovers()
+        while self._handovers and self._handovers[0][0] < t_final:
+            t, handover = self._handovers.pop(0)
+            self.message = advance_to_outcome(self.simulator, self.diagram,
+                                              self.scenario, t)
+            if self.message or self.outcome() != "running":
+                return self.message
+            handover()
         self.message = advance_to_outcome(self.simulator, self.diagram,
                                           self.scenario, t_final)
         return self.message
+
+    def _plan_handovers(self) -> list:
+        """The landing's handovers of this catch, from the object's flight
+        now: [(time [s], what hands over)]; none for a watching throw or
+        without a landing step of its own."""
+        later = landing_phase_scenario(self.scenario)
+        if self.X_WG is None or later is None:
+            return []
+        t_landing, t_fall = landing_time(
+            self.diagram, self.simulator.get_context(), self.scenario)
+        handovers = [(t_landing, lambda: self._land(later))]
+        settle = self.scenario.landing_settle_s
+        if settle is not None:
+            period = self.scenario.sensors.period_s
+            t_back = max(t_landing, on_sample(t_fall + settle, period))
+            handovers.append((t_back, self._land_back))
+        return handovers
+
+    def _land(self, later: Scenario) -> None:
+        """The episode handed over to the landing's plant step `later`
+        (scenario.landing_phase_scenario), state for state."""
+        other = self.throws.landing_diagram(self, later)
+        simulator = continue_with(self.simulator, self.diagram, other, later)
+        self.handover.landed = (self.simulator, self.diagram, self.scenario)
+        self.simulator, self.diagram, self.scenario = simulator, other, later
+
+    def _land_back(self) -> None:
+        """The episode handed back from the landing's plant step to the
+        catch's, in the diagram it ran in before the landing."""
+        _, other, before = self.handover.landed
+        simulator = continue_with(self.simulator, self.diagram, other, before)
+        self.handover.settled = (self.simulator, self.diagram)
+        self.simulator, self.diagram, self.scenario = simulator, other, before
 
     def outcome(self) -> str:
         """What the grasp monitor has decided so far: "running" until the

@@ -384,6 +384,24 @@ class Scenario:
     # 0.5 ms: benchmarks/map_convergence.py). Must be null on a continuous
     # plant.
     catch_time_step_s: float | None = 0.001
+    # Under a grasp target (regrasp.target other than "any"), the plant's
+    # step through the landing, [s]; null: catch_time_step_s's to the end.
+    # The episode is handed over to it (as at the release) landing_lead_s
+    # before the object's centre of mass, in free flight from its state at
+    # the catch's start, falls to the palm's grasp pose. At 1 ms a 2-3.5 m/s
+    # landing moves 2-3.5 mm a step into pads whose contact stops it within
+    # a fraction of a millimetre, and several pads struck in one step act as
+    # one inelastic impact: the step, not the contact, decides the landing
+    # (studies/landing_step/FINDINGS.md). The paper's `any` catch keeps
+    # catch_time_step_s throughout.
+    landing_time_step_s: float | None = 0.00025
+    # How long before that predicted fall the landing's step starts, [s]:
+    # before the highest h_catch (0.40 m) can trigger the lowering, so that
+    # a success map's cells, forked at their triggers, share it.
+    landing_lead_s: float = 0.2
+    # How long after that predicted fall the catch goes back to
+    # catch_time_step_s, [s]; null: the landing's step to the end.
+    landing_settle_s: float | None = None
     # The simulator and its integrator (Drake's SimulatorConfig, applied
     # with ApplySimulatorConfig as hardware_sim does). Drake's default
     # (runge_kutta3) integrates only the controllers' continuous states
@@ -415,7 +433,10 @@ class Scenario:
         # Drake's config types do not pickle: a scenario travels to a worker
         # process (or a Ray task) as its YAML, every value, and is loaded
         # back from it there, so workers get the caller's scenario as data.
-        return (_scenario_from_yaml, (scenario_yaml(self),))
+        # Drake's dump leaves out a null field, which the load would give
+        # its default: those are carried beside it.
+        return (_scenario_from_yaml, (scenario_yaml(self),
+                                      _null_fields(self)))
 
 
     @property
@@ -429,8 +450,27 @@ class Scenario:
                 and scenario_yaml(self) == scenario_yaml(other))
 
 
-def _scenario_from_yaml(text: str) -> Scenario:
-    return yaml_load_typed(schema=Scenario, data=text)
+def _scenario_from_yaml(text: str, nulls=()) -> Scenario:
+    scenario = yaml_load_typed(schema=Scenario, data=text)
+    for path in nulls:
+        owner = scenario
+        for name in path[:-1]:
+            owner = getattr(owner, name)
+        setattr(owner, path[-1], None)
+    return scenario
+
+
+def _null_fields(value, path=()) -> list[tuple]:
+    """The paths of the fields of a dataclass `value` (nested) that are
+    None."""
+    nulls = []
+    for f in dc.fields(value) if dc.is_dataclass(value) else ():
+        field = getattr(value, f.name)
+        if field is None:
+            nulls.append((*path, f.name))
+        else:
+            nulls += _null_fields(field, (*path, f.name))
+    return nulls
 
 
 def target_of(s: Scenario) -> Target:
@@ -589,6 +629,28 @@ def hands_over(scenario: Scenario) -> bool:
     time (catch_time_step_s; see catch_phase_scenario)."""
     step = scenario.catch_time_step_s
     return step is not None and step != scenario.plant_config.time_step
+
+
+def lands_at_own_step(scenario: Scenario) -> bool:
+    """Whether a catching episode goes on at landing_time_step_s through the
+    landing: under a grasp target, at a step other than the catch's."""
+    step = scenario.landing_time_step_s
+    catch = scenario.catch_time_step_s or scenario.plant_config.time_step
+    return (step is not None and step != catch
+            and scenario.regrasp.target != "any")
+
+
+def landing_phase_scenario(scenario: Scenario) -> Scenario | None:
+    """The scenario a catching episode goes on under through the landing:
+    the plant at landing_time_step_s; None when it has no step of its
+    own."""
+    if not lands_at_own_step(scenario):
+        return None
+    copied = copy.deepcopy(scenario)
+    copied.plant_config.time_step = scenario.landing_time_step_s
+    copied.catch_time_step_s = None
+    copied.landing_time_step_s = None
+    return copied
 
 
 def catch_phase_scenario(scenario: Scenario) -> Scenario | None:

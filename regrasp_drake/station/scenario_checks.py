@@ -68,7 +68,8 @@ def validate(s):
 
 
 def _check_plant(s) -> None:
-    """plant_config, simulator_config, catch_time_step_s, directives."""
+    """plant_config, simulator_config, catch_time_step_s,
+    landing_time_step_s, landing_lead_s, directives."""
     dt = s.plant_config.time_step
     if dt != 0.0:
         _in_range("plant_config.time_step", dt, 1e-5, 5e-3,
@@ -81,6 +82,17 @@ def _check_plant(s) -> None:
                               "(plant_config.time_step 0)")
         _in_range("catch_time_step_s", s.catch_time_step_s, dt, 5e-3,
                   f" s (at least plant_config.time_step = {dt} s)")
+    if s.landing_time_step_s is not None:
+        if dt == 0.0:
+            raise field_error("landing_time_step_s", s.landing_time_step_s,
+                              "null with a continuous plant "
+                              "(plant_config.time_step 0)")
+        catch = s.catch_time_step_s or dt
+        _in_range("landing_time_step_s", s.landing_time_step_s, 1e-5, catch,
+                  f" s (at most the catch's step, {catch} s)")
+    _in_range("landing_lead_s", s.landing_lead_s, 0.0, 2.0, " s")
+    if s.landing_settle_s is not None:
+        _in_range("landing_settle_s", s.landing_settle_s, 0.0, 4.0, " s")
     _check_directives(s.directives)
     if s.plant_config.contact_model != "point":
         raise field_error("plant_config.contact_model",
@@ -158,7 +170,8 @@ def _check_sensors(s) -> None:
     n, dt = s.sensors, s.plant_config.time_step
     _in_range("sensors.period_s", n.period_s, max(dt, 1e-4), 0.05, " s")
     for name, step in (("plant_config.time_step", dt),
-                       ("catch_time_step_s", s.catch_time_step_s)):
+                       ("catch_time_step_s", s.catch_time_step_s),
+                       ("landing_time_step_s", s.landing_time_step_s)):
         ratio = n.period_s / step if step else 1.0
         if abs(ratio - round(ratio)) > 1e-9 * ratio:
             raise field_error("sensors.period_s", n.period_s,
