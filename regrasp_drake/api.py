@@ -31,6 +31,7 @@ import torch
 # rd.Episode: one throw held between its stages (episode/episode.py).
 from regrasp_drake.episode.episode import Episode as Episode
 from regrasp_drake.episode.result import EpisodeResult
+from regrasp_drake.episode.static_hold import check_holdable
 from regrasp_drake.errors import InputError, field_error
 from regrasp_drake.learning.flight_predictor import FlightPredictor
 from regrasp_drake.learning.learning_phase import apply_learned
@@ -299,6 +300,7 @@ def _checked(scenario: Scenario | None, obj: ObjectSpec,
     if target is not None:
         scenario = with_target(scenario, _target(target))
     check_reachable(target_of(scenario), obj)
+    check_holdable(scenario, obj)
     return scenario
 
 

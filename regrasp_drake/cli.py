@@ -121,6 +121,9 @@ def _scenario_and_object(args):
     scenario = args.scenario
     obj = resolve_object(name=args.object, file=args.object_file)
     check_reachable(target_of(scenario), obj)
+    if scenario.regrasp.target != "any":  # the static test simulates
+        from regrasp_drake.episode.static_hold import check_holdable
+        check_holdable(scenario, obj)
     source = (str(args.object_file.resolve()) if args.object_file
               else "catalogue")
     return scenario, obj, source, args.scenario_label

@@ -149,11 +149,17 @@ def measure(obj: ObjectSpec, R_PO, p_PO, start_R_PO=None) -> Grasp:
                  side=side, R_PO=tuple(map(tuple, R_PO)))
 
 
+def target_orientation(target: Target, start: Grasp) -> np.ndarray:
+    """R_PO, the object's orientation in the palm frame that `target` asks
+    for: the start grasp's turned as the target turns it."""
+    return _TARGET_ROTATIONS[target.kind] @ np.asarray(start.R_PO)
+
+
 def expected(target: Target, obj: ObjectSpec, start: Grasp):
     """(y_P, side): the object's axis in the palm frame that `target` asks
     for, and its side (None for an object without one), from the start
     grasp."""
-    R = _TARGET_ROTATIONS[target.kind] @ np.asarray(start.R_PO)
+    R = target_orientation(target, start)
     side = (_side_name(R @ (np.sign(obj.r_cm) * np.array([1.0, 0, 0])))
             if has_side(obj) else None)
     return R[:, 1], side

@@ -167,7 +167,7 @@ def preshape_closures(catch) -> np.ndarray:
     return closures
 
 
-class _Ramp:
+class FingerRamp:
     """The fingers from q_from toward q_to at their speed (rad/s), with
     what depends on the two postures only made once."""
 
@@ -223,15 +223,15 @@ class CatchStateMachine(LeafSystem):
             self._closed - self._open)
         self._preshape = self._open + preshape_closures(scenario.catch) * (
             self._closed - self._open)
-        self._open_to_hold = _Ramp(self._open, self._hold,
+        self._open_to_hold = FingerRamp(self._open, self._hold,
                                    finger_speed_rad_per_s)
-        self._hold_to_open = _Ramp(self._hold, self._open,
+        self._hold_to_open = FingerRamp(self._hold, self._open,
                                    finger_speed_rad_per_s)
-        self._open_to_closed = _Ramp(self._open, self._closed,
+        self._open_to_closed = FingerRamp(self._open, self._closed,
                                      finger_speed_rad_per_s)
-        self._open_to_preshape = _Ramp(self._open, self._preshape,
+        self._open_to_preshape = FingerRamp(self._open, self._preshape,
                                        finger_speed_rad_per_s)
-        self._preshape_to_closed = _Ramp(self._preshape, self._closed,
+        self._preshape_to_closed = FingerRamp(self._preshape, self._closed,
                                          finger_speed_rad_per_s)
         self._cushion = scenario.catch.return_from_motion
         self._lower_moving = lowers_moving(scenario)

@@ -25,6 +25,7 @@ dataclass tree, each field with its unit, meaning and source beside it.
 import copy
 import dataclasses as dc
 import hashlib
+import re
 import sys
 import typing
 from pathlib import Path
@@ -358,6 +359,9 @@ class RegraspConfig:
     # target's throw; a scenario naming a target keeps the throw it has.
     target: str = "any"
     offset_mm: float = 0.0
+    # Whether a target the closed hand does not hold at rest (the static
+    # test, episode/static_hold.py) is refused before the throw.
+    check_hold: bool = True
 
 
 def _plant_config() -> MultibodyPlantConfig:
@@ -486,7 +490,8 @@ def with_target(s: Scenario, target: Target) -> Scenario:
     the palm catches it from the start grasp's side, or from the other for
     a turn); `any` keeps the scenario's throw."""
     out = copy.deepcopy(s)
-    out.regrasp = RegraspConfig(target.kind, float(target.offset_mm))
+    out.regrasp = dc.replace(out.regrasp, target=target.kind,
+                             offset_mm=float(target.offset_mm))
     if target.kind in ("keep", "turn"):
         out.throw.toss.spin_rad_per_s = 0.0
     return validate(out)
@@ -671,14 +676,17 @@ def scenario_yaml(scenario: Scenario) -> str:
 def scenario_digest(scenario: Scenario) -> str:
     """A short sha256 of every value of the scenario: equal digests, same throw
     and same catch machinery. A scenario aiming for no target (regrasp at
-    its defaults, `any`) digests as it did before the field existed, so
-    that the results recorded then still match it. Kept by the scenario's
+    its defaults, `any`) digests as it did before the field existed, and
+    without the landing's fields, so that the results recorded then still
+    match it. Kept by the scenario's
     repr (every value, nested, Drake's configs included: a twentieth of the
     YAML's cost; scenarios equal in repr are equal in YAML)."""
     def compute():
         text = scenario_yaml(scenario)
         if scenario.regrasp == RegraspConfig():
-            text = text[:text.rindex("regrasp:\n")]
+            # Nor do the landing's fields, which only a target reads.
+            text = re.sub(r"(?m)^landing_\w+: .*\n", "",
+                          text[:text.rindex("regrasp:\n")])
         return hashlib.sha256(text.encode()).hexdigest()[:16]
     # NumPy's arrays (Drake's transforms in the directives) in full: every
     # float as the shortest text that reads back the same, none elided.
