@@ -9,12 +9,14 @@ import numpy as np
 import torch
 
 from regrasp_drake.episode.branching import run_cells
-from regrasp_drake.episode.episode import release_time, run_episode
+from regrasp_drake.episode.episode import Episode, release_time, run_episode
 from regrasp_drake.episode.result import read_ending
 from regrasp_drake.errors import InputError
 from regrasp_drake.grid import plan_object
+from regrasp_drake.planning.grasp import Target
 from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.station.scenario import load_scenario
+from regrasp_drake.station.catch_state_machine import Phase
+from regrasp_drake.station.scenario import load_scenario, with_target
 from regrasp_drake.world.objects import resolve_object
 from tests.fixtures import Row2Fixture
 
@@ -127,6 +129,69 @@ class HandoverTest(unittest.TestCase):
             load_scenario(text="{plant_config: {time_step: 0}, "
                                "simulator_config: {integration_scheme: "
                                "cenic}}")
+
+
+class LandingHandoverTest(unittest.TestCase):
+    """Under a grasp target the catch goes on at the landing's step before
+    the landing (1 ms, then 0.5 ms: a cheaper stand-in for the shipped 1
+    and 0.25 ms), and back at the catch's step after it: forked cells
+    still equal whole episodes, the handovers come before any cell
+    triggers, and the logs run on across them."""
+
+    @classmethod
+    def setUpClass(cls):
+        torch.set_num_threads(1)
+        cls.obj = resolve_object(name="table1-row2")
+        cls.ik = ArmIk()
+        cls.scenario = with_target(load_scenario(
+            name="Fast", text="{landing_time_step_s: 0.0005}"),
+            Target("flip"))
+        cls.plan = plan_object(cls.scenario, cls.obj, cls.ik)
+
+    def check_cells(self, scenario):
+        parameters = [(0.40, -0.05), (0.08, -0.13)]
+        rows = run_cells(scenario, self.obj, ik=self.ik, X_WG=self.plan.X_WG,
+                         parameters=parameters, workers=2)
+        for (h_catch, h_down), row in zip(parameters, rows):
+            episode = Episode(scenario, self.obj, ik=self.ik,
+                              X_WG=self.plan.X_WG,
+                              catch_parameters=(h_catch, h_down))
+            whole = episode.run()
+            t_landing = episode.landing_at
+            self.assertEqual((row.outcome, row.sim_time_s, row.catch_time_s),
+                             (whole.outcome, whole.sim_time_s,
+                              whole.catch_time_s))
+            np.testing.assert_array_equal(row.p_WO_final, whole.p_WO_final)
+            # Handed over at the landing: at a sensor sample, before the
+            # hand lowers (before the highest h_catch triggers it).
+            self.assertEqual(episode.scenario.plant_config.time_step,
+                             scenario.plant_config.time_step
+                             if scenario.landing_settle_s is not None
+                             else 0.0005)
+            i = np.searchsorted(whole.logs.t, t_landing)
+            self.assertAlmostEqual(whole.logs.t[i], t_landing)
+            self.assertLess(whole.logs.phase[i], Phase.LOWER)
+            self.assertGreater(np.flatnonzero(
+                whole.logs.phase == Phase.LOWER)[0], i)
+            np.testing.assert_allclose(np.diff(whole.logs.t),
+                                       scenario.sensors.period_s, atol=1e-9)
+        return rows
+
+    def test_forked_cells_equal_whole_episodes(self):
+        self.check_cells(self.scenario)
+
+    def test_handed_back_after_the_landing(self):
+        settled = copy.deepcopy(self.scenario)
+        settled.landing_settle_s = 0.1
+        self.check_cells(settled)
+
+    def test_any_catch_is_not_handed_over(self):
+        any_catch = with_target(self.scenario, Target("any"))
+        episode = Episode(any_catch, self.obj, ik=self.ik,
+                          X_WG=self.plan.X_WG, catch_parameters=(0.2, -0.05))
+        episode.run()
+        self.assertIsNone(episode.landing_at)
+        self.assertEqual(episode.scenario.plant_config.time_step, 0.001)
 
 
 class ReadEndingTest(unittest.TestCase):

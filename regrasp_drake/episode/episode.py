@@ -86,19 +86,17 @@ class Handover:
         """The whole episode's logs: the throw's, the catch's before the
         landing when handed over there, then `after`'s (the loggers of the
         diagram it ended in)."""
-        if self.before is None:
-            return after
-        simulator, episode = self.before
-        logs = read_logs(episode.loggers, simulator.get_context())
-        if self.parameters is not None:
-            logs.params = np.tile(np.reshape(self.parameters, (2, 1)),
-                                  (1, logs.params.shape[1]))
-        for segment in (self.landed, self.settled):
-            if segment is not None:
-                simulator, episode = segment[:2]
-                logs = _joined(logs, read_logs(episode.loggers,
-                                               simulator.get_context()))
-        return _joined(logs, after)
+        logs = None
+        for segment in (self.before, self.landed, self.settled):
+            if segment is None:
+                continue
+            simulator, episode = segment[:2]
+            part = read_logs(episode.loggers, simulator.get_context())
+            if segment is self.before and self.parameters is not None:
+                part.params = np.tile(np.reshape(self.parameters, (2, 1)),
+                                      (1, part.params.shape[1]))
+            logs = part if logs is None else _joined(logs, part)
+        return after if logs is None else _joined(logs, after)
 
 
 def _joined(first: Logs, then: Logs) -> Logs:
@@ -319,6 +317,7 @@ class Episode:
         # The handovers to come through the landing (advance_to_outcome):
         # [(time [s], what hands over)], made at its first call.
         self._handovers: list | None = None
+        self.landing_at = None  # when handed over to the landing's step, [s]
         self._key = None  # its throw's in `throws` (ThrowCache.key)
         self.build_s = 0.0  # the wall time to build and initialise, [s]
         self._recording = meshcat is not None
@@ -401,34 +400,42 @@ class Episode:
         if t_final is None:
             t_final = self.scenario.monitor.max_time_s + 1.0
         if self._handovers is None:
-            self._handovers = self._plan_handovers()
+            # Planned from the object's flight, at the release time.
+            self._handovers = [(release_time(self.scenario),
+                                self._plan_handovers)]
         while self._handovers and self._handovers[0][0] < t_final:
             t, handover = self._handovers.pop(0)
-            self.message = advance_to_outcome(self.simulator, self.diagram,
-                                              self.scenario, t)
-            if self.message or self.outcome() != "running":
-                return self.message
+            # Not advanced to a time it is at: Drake would handle the events
+            # of that time, which belong to the next diagram (hand_over).
+            if self.simulator.get_context().get_time() < t:
+                self.message = advance_to_outcome(
+                    self.simulator, self.diagram, self.scenario, t)
+                if self.message or self.outcome() != "running":
+                    return self.message
             handover()
         self.message = advance_to_outcome(self.simulator, self.diagram,
                                           self.scenario, t_final)
         return self.message
 
-    def _plan_handovers(self) -> list:
-        """The landing's handovers of this catch, from the object's flight
-        now: [(time [s], what hands over)]; none for a watching throw or
-        without a landing step of its own."""
+    def _plan_handovers(self) -> None:
+        """The landing's handovers of this catch, planned from the object's
+        flight now (the release time), put first in the list of those to
+        come: [(time [s], what hands over)]; none for a watching throw or
+        without a landing step of its own. `landing_at`: the first's
+        time."""
         later = landing_phase_scenario(self.scenario)
         if self.X_WG is None or later is None:
-            return []
+            return
         t_landing, t_fall = landing_time(
             self.diagram, self.simulator.get_context(), self.scenario)
+        self.landing_at = t_landing
         handovers = [(t_landing, lambda: self._land(later))]
         settle = self.scenario.landing_settle_s
         if settle is not None:
             period = self.scenario.sensors.period_s
             t_back = max(t_landing, on_sample(t_fall + settle, period))
             handovers.append((t_back, self._land_back))
-        return handovers
+        self._handovers[:0] = handovers
 
     def _land(self, later: Scenario) -> None:
         """The episode handed over to the landing's plant step `later`
