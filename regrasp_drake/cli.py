@@ -93,6 +93,7 @@ def _cmd_catch(args) -> int:
         run.plot(args.plot)
     summary = run.summary()
     print(json.dumps(summary, indent=1))
+    print(run.regrasp_line())
     _write_json(args.json, summary)
     return 0
 
@@ -120,7 +121,9 @@ def _scenario_and_object(args):
     from regrasp_drake.world.objects import resolve_object
     scenario = args.scenario
     obj = resolve_object(name=args.object, file=args.object_file)
-    check_reachable(target_of(scenario), obj)
+    check_reachable(target_of(scenario), obj, field=(
+        "--offset-mm" if getattr(args, "offset_mm", None) is not None
+        else "the scenario's regrasp.offset_mm"))
     source = (str(args.object_file.resolve()) if args.object_file
               else "catalogue")
     return scenario, obj, source, args.scenario_label
@@ -243,7 +246,7 @@ def _cmd_learn(args) -> int:
                     scenario_label=label, object_source=source,
                     max_throws=args.max_throws,
                     weights=_load_network(args, scenario),
-                    first_throw=args.first_throw,
+                    watch=not (args.first_throw or args.at_release),
                     flight_model=_flight_predictor(args),
                     at_release=args.at_release, search=args.search,
                     offset_prior=_offset_prior(args, scenario),
@@ -259,6 +262,7 @@ def _cmd_learn(args) -> int:
     summary = result.as_dict() | {
         "stored_in": str(args.library) if result.learned else None}
     print(json.dumps(summary, indent=1))
+    print(run.regrasp_line())
     _write_json(args.json, summary)
     return 0
 
@@ -275,6 +279,7 @@ def _cmd_apply(args) -> int:
         "throws": 1, "cell": run.entry.cell, "library": str(args.library),
         "total_wall_s": round(time.perf_counter() - start, 3)}
     print(json.dumps(summary, indent=1))
+    print(run.regrasp_line())
     _write_json(args.json, summary)
     return 0
 

@@ -27,9 +27,12 @@ class ThrowCatchExampleTest(unittest.TestCase):
             summary = json.loads(result.stdout[:result.stdout.rindex("}") + 1])
             self.assertEqual(summary["object"], "spatula-d250")
             # Held; under the example's default target (flip, +0 mm) the
-            # spatula ends in another grasp, which the last line says.
+            # spatula ends in another grasp: the last line says it missed,
+            # and why, first.
             self.assertTrue(summary["caught"])
-            self.assertIn("flip, +0 mm: ", result.stdout)
+            self.assertFalse(summary["success"])
+            self.assertRegex(result.stdout.strip().splitlines()[-1],
+                             r"^flip, \+0 mm: missed, \w")
             self.assertGreater(out.stat().st_size, 100_000)
             self.assertGreater(out.with_suffix(".png").stat().st_size, 10_000)
 
