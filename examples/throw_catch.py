@@ -18,9 +18,9 @@ cell; throw 2 catches, corrected at its release. Writes throw_catch.html
 git-ignored; ./out when installed; --out elsewhere), and prints the
 outcome and, last, the verdict on the target grasp (default flip, +0 mm:
 end over end, the palm under the centre of mass; planning/grasp.py):
-"flip, +0 mm: in the target grasp (held flip, +2 mm, tilt 12°)", or
+"flip, +0 mm: in the target grasp (held flip, +1 mm, tilt 13°)", or
 "missed" and why ("keep, +0 mm: missed, tilted 27° > 20° (held keep,
--1 mm, tilt 27°)").
++0 mm, tilt 27°)").
 """
 
 # regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
