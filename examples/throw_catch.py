@@ -12,12 +12,15 @@ target the chooser that won its judging on unseen geometries
 (models/planner_<target>.json: the learned planner, the best constant cell
 or the paper's network; docs/planner.md), under `any` the paper's trained
 network from (v_catch, h_cm, r_cm, d_obj, v_conv), quantized to its grid
-cell; throw 2 catches, corrected at its release. Writes throw_catch.html (the Meshcat replay of
-both throws, self-contained) and throw_catch.png (the sensors of throw 2
-over time) in out/ (at the top of the repository, git-ignored; ./out when
-installed; --out elsewhere), and prints the outcome and the regrasp it
-made: the target grasp (default flip, +0 mm: end over end, the palm under
-the centre of mass; planning/grasp.py) and the grasp achieved.
+cell; throw 2 catches, corrected at its release. Writes throw_catch.html
+(the Meshcat replay of both throws, self-contained) and throw_catch.png
+(the sensors of throw 2 over time) in out/ (at the top of the repository,
+git-ignored; ./out when installed; --out elsewhere), and prints the
+outcome and, last, the verdict on the target grasp (default flip, +0 mm:
+end over end, the palm under the centre of mass; planning/grasp.py):
+"flip, +0 mm: in the target grasp (held flip, +1 mm, tilt 13°)", or
+"missed" and why ("keep, +0 mm: missed, tilted 27° > 20° (held keep,
++0 mm, tilt 27°)").
 """
 
 # regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
@@ -62,8 +65,9 @@ def main() -> int:
         "network_output": [round(x, 4) for x in run.learning.raw_prediction],
         "chosen_by": run.learning.planner,
         "plan": run.plan.as_dict()}, indent=1))
-    print(run.regrasp_line())
     print(f"replay: {args.out}  sensors: {args.out.with_suffix('.png')}")
+    # Last, the verdict first: in the target grasp, or missed and why.
+    print(run.regrasp_line())
     return 0
 
 

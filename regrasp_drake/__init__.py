@@ -4,7 +4,8 @@ The public API (regrasp_drake/api.py; docs/api.md):
 
     import regrasp_drake as rd
     run = rd.regrasp(rd.load_object("table1-row2"), rd.Target("flip"),
-                     first_throw=True)
+                     watch=False, max_throws=1)
+    print(run.regrasp_line())
     run.save_replay("replay.html")
 """
 

@@ -2,8 +2,8 @@
 
     import regrasp_drake as rd
     obj = rd.load_object("table1-row2")
-    run = rd.regrasp(obj, rd.Target("flip"), first_throw=True)
-    print(run.success, run.achieved_grasp, run.throws)
+    run = rd.regrasp(obj, rd.Target("flip"), watch=False, max_throws=1)
+    print(run.regrasp_line())   # the verdict first, then why
     run.save_replay("replay.html"); run.plot("sensors.png")
 
 `regrasp`, `learn`, `catch` and `apply` are the command line's commands of
@@ -17,13 +17,22 @@ StartMeshcat() in a notebook, or any Meshcat; default: a private one on
 loopback, for the replay) unless replay=False, and recorded, so that
 `Run.save_replay` writes them as one self-contained HTML file.
 
+No call changes the process's state: torch's thread count is set to one
+for a call that runs the network and restored after it, and what a call
+writes without a path given (`learn`'s library) goes to ./out of the
+working directory.
+
 `Episode` is one throw (and its catch) held between its stages, for a
 caller who drives an episode itself: start, advance to the release, set
 the task, advance to the outcome, read the result.
 """
 
+import contextlib
 import dataclasses as dc
+import difflib
+import inspect
 import sys
+import warnings
 from pathlib import Path
 
 import torch
@@ -40,8 +49,8 @@ from regrasp_drake.learning.library import DEFAULT_LIBRARY, lookup
 from regrasp_drake.learning.offset_prior import OffsetPrior
 from regrasp_drake.learning.planner import PAPER_NETWORK
 from regrasp_drake.learning.run_replay import RunReplay
-from regrasp_drake.paths import MODELS_DIR, OUT_DIR
-from regrasp_drake.planning.grasp import Target, check_reachable
+from regrasp_drake.paths import MODELS_DIR
+from regrasp_drake.planning.grasp import TARGET_KINDS, Target, check_reachable
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.plots import plot_episode
 from regrasp_drake.station import scenario as scenarios
@@ -51,9 +60,10 @@ from regrasp_drake.station.scenario_checks import check_catch_parameters
 from regrasp_drake.throw_catch import catch_once, episode_caption, save_replay
 from regrasp_drake.world.objects import ObjectSpec, resolve_object
 
-# Where `learn` stores what it learned and `apply` looks it up by default
-# (the command line's --library default).
-DEFAULT_LIBRARY_PATH = OUT_DIR / DEFAULT_LIBRARY
+# Where `learn` stores what it learned and `apply` looks it up by default:
+# out/ of the working directory at the call (the command line's --library
+# defaults to paths.OUT_DIR's instead).
+DEFAULT_LIBRARY_PATH = Path("out") / DEFAULT_LIBRARY
 # learn's planner: the target's shipped one, or the paper's network.
 PLANNER_CHOICES = ("shipped", "paper")
 
@@ -73,7 +83,8 @@ def load_scenario(name: str | None = None, *, file=None,
     when it holds one scenario; `text`: YAML fields that replace its own
     (as --scenario-text); `target`: the grasp to aim for (a Target or its
     kind), which picks the target's throw."""
-    scenario = scenarios.load_scenario(file, name=name, text=text)
+    scenario = scenarios.load_scenario(file, name=name, text=text,
+                                       names=("file", "name", "text"))
     return scenario if target is None else with_target(scenario,
                                                        _target(target))
 
@@ -98,8 +109,19 @@ class Run:
         offset_mm along the axis, tilt_deg…), None when not held."""
         return self.episode.achieved_grasp
 
+    @property
+    def miss_reason(self) -> str | None:
+        """Why the last throw is not in the target grasp: "dropped" (not
+        held), "wrong_way_round" (the axis reversed), "wrong_side" (a
+        lopsided object's side another), "tilted" (more than 20° off the
+        palm's axis), "off_offset" (more than 10 mm from the target's
+        offset); None on a success (planning/grasp.py miss_reason)."""
+        return None if self.success else self.episode.miss_reason
+
     def regrasp_line(self) -> str:
-        """e.g. "flip, +0 mm: achieved flip, +3 mm, tilt 12°"."""
+        """The last throw's verdict first, then why: "flip, +0 mm: in the
+        target grasp (held flip, +3 mm, tilt 12°)", "keep, +0 mm: missed,
+        tilted 29° > 20° (held keep, +2 mm, tilt 29°)"."""
         return self.episode.regrasp_line()
 
     def summary(self) -> dict:
@@ -149,27 +171,37 @@ def catch(obj: ObjectSpec, h_catch: float, h_down: float, *,
         meshcat=None if recording is None else recording.meshcat)
     if recording is not None:
         recording.add_episode(episode.sim_time_s)
-    return _run(scenario, obj.name, episode, plan=plan, replay=recording)
+    return _run(scenario, obj.name, episode, plan=plan, replay=recording,
+                throws=2)
 
 
 def learn(obj: ObjectSpec, *, scenario: Scenario | None = None,
-          target: Target | str | None = None, first_throw: bool = False,
+          target: Target | str | None = None, watch: bool = True,
           at_release: bool = False, max_throws: int | None = None,
           search: str = "wavefront", weights=None, flight_model=None,
           offset_prior=None, library=DEFAULT_LIBRARY_PATH,
           meshcat=None, replay: bool = True, progress=sys.stderr,
           scenario_label: str = "defaults",
-          object_source: str = "catalogue", planner: str = "shipped") -> Run:
+          object_source: str = "catalogue", planner: str = "shipped",
+          first_throw: bool | None = None) -> Run:
     """`regrasp-drake learn`: the learning phase on `obj` (paper Fig. 1):
     watch, plan, the planner's cell, catch, and search the parameter space
     until a catch (learning/learning_phase.py).
 
+    What it may cost, in throws: with `watch` (the default) one watching
+    throw, then one catching throw per cell tried until one catches: up to
+    the 150 cells, fewer under a grasp target (it stops after 10 throws in
+    a row missed it the same way); without, the catch from throw 1 on.
+    `max_throws` bounds it: watch=False, max_throws=1 is one throw.
+
     target: the grasp to end in (a Target or its kind; default the
-    scenario's regrasp.target). first_throw: no watching throw, the catch
-    planned from the flight predictor (`flight_model`, a path or a loaded
-    FlightPredictor; default models/flight_predictor.json); at_release: each
-    throw plans its own catch at its release. max_throws: stop after so
-    many throws (default: until a catch or every cell is tried). search:
+    scenario's regrasp.target). watch=False: no watching throw, throw 1
+    catches, planned from the flight predictor (`flight_model`, a path or a
+    loaded FlightPredictor; default models/flight_predictor.json), or with
+    at_release=True planned at each throw's release. max_throws: stop after
+    so many throws, the watching throw included (at least 2 with watch;
+    default: until a catch or every cell is tried). first_throw: the old
+    name of watch=False (deprecated). search:
     "wavefront" (the paper's) or "map-prior". weights: the network (a path
     or a loaded CatchMlp; default the scenario's catch.weights in models/).
     offset_prior: a path or a loaded OffsetPrior (default none). library:
@@ -181,7 +213,12 @@ def learn(obj: ObjectSpec, *, scenario: Scenario | None = None,
     under `any`) or "paper" (the paper's network; docs/planner.md)."""
     if planner not in PLANNER_CHOICES:
         raise field_error("planner", planner, " or ".join(PLANNER_CHOICES))
-    torch.set_num_threads(1)
+    watch = _watch(watch, first_throw, "learn")
+    if at_release and watch:
+        raise InputError("at_release: got True with watch=True, expected "
+                         "watch=False (a catch planned at each release makes "
+                         "no watching throw)")
+    _check_max_throws(max_throws, watch)
     scenario = _checked(scenario, obj, target)
     recording = _recording(meshcat, replay)
     episodes = []
@@ -191,17 +228,20 @@ def learn(obj: ObjectSpec, *, scenario: Scenario | None = None,
         if recording is not None:
             recording.add_episode(result.sim_time_s)
 
-    result = learning_phase(
-        scenario, obj, load_network(weights, scenario), library_path=library,
-        scenario_label=scenario_label, object_source=object_source,
-        max_throws=max_throws,
-        flight_predictor=(load_flight_predictor(flight_model)
-                          if first_throw else None),
-        at_release=at_release, search=search,
-        offset_prior=load_offset_prior(offset_prior, scenario),
-        meshcat=None if recording is None else recording.meshcat,
-        on_episode=on_episode, progress=progress,
-        planner=PAPER_NETWORK if planner == "paper" else None)
+    if library is not None and Path(library) == DEFAULT_LIBRARY_PATH:
+        Path(library).parent.mkdir(exist_ok=True)
+    with _one_torch_thread():
+        result = learning_phase(
+            scenario, obj, load_network(weights, scenario),
+            library_path=library, scenario_label=scenario_label,
+            object_source=object_source, max_throws=max_throws,
+            flight_predictor=(load_flight_predictor(flight_model)
+                              if not watch and not at_release else None),
+            at_release=at_release, search=search,
+            offset_prior=load_offset_prior(offset_prior, scenario),
+            meshcat=None if recording is None else recording.meshcat,
+            on_episode=on_episode, progress=progress,
+            planner=PAPER_NETWORK if planner == "paper" else None)
     # The plan of the last catching throw (a later one's, after an offset
     # correction, never ran).
     plan = result.attempts[-1].plan if result.attempts else result.plan
@@ -210,13 +250,16 @@ def learn(obj: ObjectSpec, *, scenario: Scenario | None = None,
                 throws=result.throws)
 
 
-def regrasp(obj: ObjectSpec, target: Target | str, *,
-            first_throw: bool = False, **options) -> Run:
+def regrasp(obj: ObjectSpec, target: Target | str, *, watch: bool = True,
+            **options) -> Run:
     """`regrasp-drake regrasp`: the learning phase aiming for `target` (a
     Target, e.g. Target("flip", offset_mm=0), or its kind: keep, flip, turn,
-    any); first_throw: catch on throw 1, planned from the flight predictor;
-    `options` as `learn`'s."""
-    return learn(obj, target=target, first_throw=first_throw, **options)
+    any); watch=False: no watching throw, throw 1 catches, planned from
+    the flight predictor (with max_throws=1: that one throw, and no search
+    after a miss); `options` as `learn`'s, which says what a call may cost
+    in throws."""
+    _check_options("regrasp", options, learn, taken=("target", "watch"))
+    return learn(obj, target=target, watch=watch, **options)
 
 
 def apply(obj: ObjectSpec, *, library=DEFAULT_LIBRARY_PATH,
@@ -280,10 +323,61 @@ def load_offset_prior(offset_prior, scenario: Scenario, *,
 def _target(target: Target | str) -> Target:
     if isinstance(target, Target):
         return target
-    if isinstance(target, str):
+    if isinstance(target, str) and target in TARGET_KINDS:
         return Target(target)
     raise field_error("target", target, "a Target or one of its kinds "
                                         "(keep, flip, turn, any)")
+
+
+def _check_options(function: str, options: dict, inner,
+                   taken: tuple = ()) -> None:
+    """Refuses a keyword argument of `options` that `inner` does not take
+    (or that `function` sets itself, `taken`), as Python does, naming
+    `function`, the one the caller called."""
+    known = [p for p in inspect.signature(inner).parameters
+             if p not in taken and p != "obj"]
+    for name in options:
+        if name not in known:
+            close = difflib.get_close_matches(name, known, n=1)
+            hint = f". Did you mean {close[0]!r}?" if close else ""
+            raise TypeError(f"{function}() got an unexpected keyword "
+                            f"argument {name!r}{hint}")
+
+
+def _watch(watch: bool, first_throw: bool | None, function: str) -> bool:
+    """watch, or the deprecated first_throw's opposite."""
+    if first_throw is None:
+        return watch
+    warnings.warn(f"{function}(first_throw=...) is deprecated: it means no "
+                  "watching throw, not one throw; use watch=False (and "
+                  "max_throws=1 for one throw)", DeprecationWarning,
+                  stacklevel=3)
+    return not first_throw
+
+
+def _check_max_throws(max_throws, watch: bool) -> None:
+    """At least the watch, if any, and one catching throw."""
+    if max_throws is None:
+        return
+    least = 2 if watch else 1
+    if (not isinstance(max_throws, int) or isinstance(max_throws, bool)
+            or max_throws < least):
+        raise field_error("max_throws", max_throws, (
+            f"an integer >= {least} ("
+            + ("the watching throw and one catch; watch=False catches on "
+               "throw 1)" if watch else "one catching throw)")))
+
+
+@contextlib.contextmanager
+def _one_torch_thread():
+    """torch on one thread (the network's output, and so the cell, is then
+    the same bits everywhere), its thread count restored after."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
 
 
 def _checked(scenario: Scenario | None, obj: ObjectSpec,

@@ -93,6 +93,7 @@ def _cmd_catch(args) -> int:
         run.plot(args.plot)
     summary = run.summary()
     print(json.dumps(summary, indent=1))
+    print(run.regrasp_line())
     _write_json(args.json, summary)
     return 0
 
@@ -120,7 +121,9 @@ def _scenario_and_object(args):
     from regrasp_drake.world.objects import resolve_object
     scenario = args.scenario
     obj = resolve_object(name=args.object, file=args.object_file)
-    check_reachable(target_of(scenario), obj)
+    check_reachable(target_of(scenario), obj, field=(
+        "--offset-mm" if getattr(args, "offset_mm", None) is not None
+        else "the scenario's regrasp.offset_mm"))
     if scenario.regrasp.target != "any":  # the static test simulates
         from regrasp_drake.episode.static_hold import check_holdable
         check_holdable(scenario, obj)
@@ -246,7 +249,7 @@ def _cmd_learn(args) -> int:
                     scenario_label=label, object_source=source,
                     max_throws=args.max_throws,
                     weights=_load_network(args, scenario),
-                    first_throw=args.first_throw,
+                    watch=not (args.first_throw or args.at_release),
                     flight_model=_flight_predictor(args),
                     at_release=args.at_release, search=args.search,
                     offset_prior=_offset_prior(args, scenario),
@@ -262,6 +265,7 @@ def _cmd_learn(args) -> int:
     summary = result.as_dict() | {
         "stored_in": str(args.library) if result.learned else None}
     print(json.dumps(summary, indent=1))
+    print(run.regrasp_line())
     _write_json(args.json, summary)
     return 0
 
@@ -278,6 +282,7 @@ def _cmd_apply(args) -> int:
         "throws": 1, "cell": run.entry.cell, "library": str(args.library),
         "total_wall_s": round(time.perf_counter() - start, 3)}
     print(json.dumps(summary, indent=1))
+    print(run.regrasp_line())
     _write_json(args.json, summary)
     return 0
 

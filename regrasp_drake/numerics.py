@@ -24,11 +24,14 @@ needed nothing more: with these two pinned, the AVX-512 machine reproduced
 the AVX2 machine's states.
 
 Import `regrasp_drake` before NumPy (the package's commands, scripts and
-tests do); `status()` tells whether the pin took effect in this process.
+tests do); imported after it, `pin()` cannot take effect and says so with a
+RuntimeWarning (NumPy and OpenBLAS read the variables once, when NumPy is
+imported). `status()` tells whether the pin took effect in this process.
 """
 
 import os
 import sys
+import warnings
 
 NUMPY_DISABLED = "X86_V4 AVX512_ICL AVX512_SPR"
 OPENBLAS_CORETYPE = "Haswell"
@@ -50,16 +53,51 @@ def _cpu_flags() -> set[str]:
 
 def pin() -> None:
     """Sets the variables above for this process and its children, unless
-    NumPy is already imported (too late) or the machine is not x86-64 with
-    AVX2 and FMA."""
-    if "numpy" in sys.modules:
-        return
+    the machine is not x86-64 with AVX2 and FMA, or NumPy is already
+    imported: too late, then, and a RuntimeWarning says so, unless the
+    variables were set before (by the user, or inherited from a pinned
+    process)."""
     flags = _cpu_flags()
     if not {"avx2", "fma"} <= flags:
+        return
+    if "numpy" in sys.modules:
+        if not _set_before():
+            warnings.warn(
+                "regrasp_drake was imported after NumPy: NumPy's and "
+                "OpenBLAS's kernels are not pinned (regrasp_drake/"
+                "numerics.py), so results may differ in their last bits "
+                "from other machines'; import regrasp_drake before numpy, "
+                "or set NPY_DISABLE_CPU_FEATURES='X86_V4 AVX512_ICL "
+                "AVX512_SPR' and OPENBLAS_CORETYPE=Haswell",
+                RuntimeWarning, stacklevel=_importer_stacklevel())
         return
     if "NPY_ENABLE_CPU_FEATURES" not in os.environ:
         os.environ.setdefault("NPY_DISABLE_CPU_FEATURES", NUMPY_DISABLED)
     os.environ.setdefault("OPENBLAS_CORETYPE", OPENBLAS_CORETYPE)
+
+
+def _set_before() -> bool:
+    """Whether NumPy's and OpenBLAS's variables are set (to anything: a
+    user's choice is kept as it is)."""
+    numpy_set = ("NPY_DISABLE_CPU_FEATURES" in os.environ
+                 or "NPY_ENABLE_CPU_FEATURES" in os.environ)
+    return numpy_set and "OPENBLAS_CORETYPE" in os.environ
+
+
+def _importer_stacklevel() -> int:
+    """The stack level of the frame that imported regrasp_drake, for the
+    warning to name the user's line: past the package's frames and the
+    import machinery's (which `warnings` skips without counting them)."""
+    frame, level = sys._getframe(1), 1
+    while frame is not None:
+        name = frame.f_code.co_filename
+        if "importlib" in name and "_bootstrap" in name:
+            frame = frame.f_back  # not counted by warnings
+            continue
+        if not frame.f_globals.get("__name__", "").startswith("regrasp_drake"):
+            break
+        frame, level = frame.f_back, level + 1
+    return level
 
 
 def status() -> dict:

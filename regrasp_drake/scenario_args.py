@@ -74,7 +74,10 @@ def load(args: argparse.Namespace, *, target_required: bool = False,
         fields = over if text is None else merged_text(text, over)
     scenario = load_scenario(path, name=name, text=fields)
     if kind is not None:
-        from regrasp_drake.planning.grasp import Target
+        from regrasp_drake.planning.grasp import OFFSET_LIMIT_MM, Target
+        if offset is not None and not abs(offset) <= OFFSET_LIMIT_MM:
+            raise InputError(f"--offset-mm: got {offset:g}, expected a number "
+                             f"in [-{OFFSET_LIMIT_MM:g}, +{OFFSET_LIMIT_MM:g}]")
         scenario = with_target(scenario, Target(kind, offset or 0.0))
     if name is None and text is None and kind is None:
         return scenario, str(path.resolve()) if path else "defaults"

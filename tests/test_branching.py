@@ -8,7 +8,7 @@ from unittest import mock
 import numpy as np
 import torch
 
-from regrasp_drake.episode.branching import run_cells
+from regrasp_drake.episode.branching import CellError, _Children, run_cells
 from regrasp_drake.episode.episode import Episode, release_time, run_episode
 from regrasp_drake.episode.result import read_ending
 from regrasp_drake.errors import InputError
@@ -205,6 +205,29 @@ class ReadEndingTest(unittest.TestCase):
                          {"drop_reason": None, "touching": None,
                           "held_by_contact": None, "slip_m_per_s": None,
                           "spin_rad_per_s": None})
+
+    def test_contacts_failing_after_another_ending_raise(self):
+        # Only after a failed episode is a failing contact solve expected.
+        episode = mock.Mock()
+        episode.station.plant.get_contact_results_output_port.return_value \
+            .Eval.side_effect = RuntimeError("a bad port")
+        with self.assertRaisesRegex(RuntimeError, "a bad port"):
+            read_ending(episode, mock.Mock(), "caught")
+
+
+class ChildrenTest(unittest.TestCase):
+    def test_an_exception_in_a_forked_cell_is_raised_in_the_parent(self):
+        # Not recorded as "the simulation process died" (an outcome): the
+        # parent raises it, with the child's traceback.
+        def run():
+            raise ZeroDivisionError("a bug of ours")
+
+        children = _Children(1, report=mock.Mock(), died=mock.Mock())
+        children.start([0], run)
+        with self.assertRaisesRegex(CellError,
+                                    "ZeroDivisionError: a bug of ours"):
+            children.finish_all()
+        children.kill_all()
 
 
 if __name__ == "__main__":

@@ -289,6 +289,21 @@ class TestExampleObjects(unittest.TestCase):
         self.assertEqual(report["object"], "spatula-d250")
         self.assertTrue(report["caught"])
         self.assertEqual(report["throws"], 2)
+        # After the JSON, the verdict on the last throw (target: any).
+        self.assertRegex(result.stdout.strip().splitlines()[-1],
+                         r"^any, \+0 mm: caught \(held ")
+
+    def test_catch_says_a_miss_last(self):
+        # h_catch 0: the fingers never close; the JSON says how it ended,
+        # the last line the verdict first.
+        result = _run("catch", "--object", "table1-row2", "--target", "flip",
+                      "--h-catch", "0", "--h-down", "0", "--scenario-name",
+                      "Fast")
+        self.assertEqual(result.returncode, 0, result.stderr)
+        summary = json.loads(result.stdout[:result.stdout.rindex("}") + 1])
+        self.assertEqual(summary["outcome"], "timeout")
+        self.assertEqual(result.stdout.strip().splitlines()[-1],
+                         "flip, +0 mm: missed, not held (timeout)")
 
     def test_every_example_object_is_valid(self):
         result = _run("objects", "--json", "--object-file", str(EXAMPLE_OBJECTS))

@@ -4,10 +4,14 @@ outcome and read, it is the episode given that task from the start
 (run_episode), bit for bit."""
 
 import unittest
+from unittest import mock
 
 import numpy as np
 from pydrake.math import RigidTransform
+from pydrake.systems.framework import LeafSystem
+from pydrake.systems.primitives import LogVectorOutput
 
+from regrasp_drake.episode import diagram
 from regrasp_drake.episode.episode import (
     Episode,
     ThrowCache,
@@ -52,6 +56,56 @@ class EpisodeTest(Row2Fixture, unittest.TestCase):
                                       whole.logs.object_state)
         np.testing.assert_array_equal(held.logs.arm_state,
                                       whole.logs.arm_state)
+
+
+class _RaisingSystem(LeafSystem):
+    """A system whose output raises `error` once the time passes 10 ms."""
+
+    def __init__(self, error: Exception):
+        super().__init__()
+        self.error = error
+        self.DeclareVectorOutputPort("y", 1, self._calc)
+
+    def _calc(self, context, output):
+        if context.get_time() > 0.01:
+            raise self.error
+        output.SetAtIndex(0, 0.0)
+
+
+class ExceptionsTest(Row2Fixture, unittest.TestCase):
+    """Only Drake's contact solver failing is an outcome ("failed"); any
+    other exception in an episode's diagram propagates."""
+
+    def run_with(self, error: Exception):
+        """A watching throw whose diagram also holds a _RaisingSystem of
+        `error`, logged at the sensors' rate (so evaluated)."""
+        add_loggers = diagram.add_loggers
+
+        def with_raising_system(builder, station, controller, period_s):
+            system = builder.AddSystem(_RaisingSystem(error))
+            LogVectorOutput(system.get_output_port(), builder, period_s)
+            return add_loggers(builder, station, controller, period_s)
+
+        with mock.patch.object(diagram, "add_loggers", with_raising_system):
+            return run_episode(self.scenario, self.obj, ik=self.ik,
+                               X_WG=None, throws=ThrowCache(size=0))
+
+    def test_a_failing_system_raises(self):
+        with self.assertRaisesRegex(ZeroDivisionError, "a bug of ours"):
+            self.run_with(ZeroDivisionError("a bug of ours"))
+        with self.assertRaisesRegex(RuntimeError, "a bad port"):
+            self.run_with(RuntimeError("a bad port"))
+
+    def test_the_contact_solver_failing_is_the_outcome_failed(self):
+        result = self.run_with(RuntimeError(
+            "The SAP solver failed to converge at simulation time = 0.011. "
+            "Reasons for divergence and possible solutions include:\n"
+            "  1. Externally applied actuation values diverged"))
+        self.assertEqual(result.outcome, "failed")
+        self.assertEqual(result.message, "The SAP solver failed to converge "
+                         "at simulation time = 0.011. Reasons for divergence "
+                         "and possible solutions include:")
+        self.assertLess(result.sim_time_s, 0.05)
 
 
 if __name__ == "__main__":

@@ -26,10 +26,12 @@ class ThrowCatchExampleTest(unittest.TestCase):
             self.assertEqual(result.returncode, 0, result.stderr)
             summary = json.loads(result.stdout[:result.stdout.rindex("}") + 1])
             self.assertEqual(summary["object"], "spatula-d250")
-            # Held; under the example's default target (flip, +0 mm) the
-            # spatula ends in another grasp, which the last line says.
-            self.assertTrue(summary["caught"])
-            self.assertIn("flip, +0 mm: ", result.stdout)
+            # In the example's default target grasp (flip, +0 mm), which
+            # the last line says first.
+            self.assertTrue(summary["success"])
+            self.assertRegex(result.stdout.strip().splitlines()[-1],
+                             r"^flip, \+0 mm: in the target grasp \(held "
+                             r"flip, [+-]\d+ mm, tilt \d+°\)$")
             self.assertGreater(out.stat().st_size, 100_000)
             self.assertGreater(out.with_suffix(".png").stat().st_size, 10_000)
 

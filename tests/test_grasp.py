@@ -217,6 +217,54 @@ class SameMissTest(unittest.TestCase):
                         "side_ok": True}, None)):
             with self.subTest(reason=reason):
                 self.assertEqual(grasp.miss_reason(held, error), reason)
+        # Told apart for the verdict: the side another, the axis right.
+        side = {"axis_error_deg": 5.0, "offset_error_mm": 0.0,
+                "side_ok": False}
+        self.assertEqual(grasp.miss_reason(True, side, side_apart=True),
+                         "wrong_side")
+
+    def test_the_line_says_the_verdict_first(self):
+        keep = {"kind": "keep", "offset_mm": 0.0}
+        held = {"axis": "same", "offset_mm": 2.4, "tilt_deg": 29.3,
+                "kind": "keep"}
+        for achieved, error, outcome, line in (
+                (held, {"axis_error_deg": 29.3, "offset_error_mm": 2.4,
+                        "side_ok": None}, "wrong_grasp",
+                 "keep, +0 mm: missed, tilted 29° > 20° (held keep, +2 mm, "
+                 "tilt 29°)"),
+                (held | {"tilt_deg": 12.0}, {
+                    "axis_error_deg": 12.0, "offset_error_mm": 2.4,
+                    "side_ok": None}, "caught",
+                 "keep, +0 mm: in the target grasp (held keep, +2 mm, tilt "
+                 "12°)"),
+                (held | {"kind": "flip", "tilt_deg": 3.0}, {
+                    "axis_error_deg": 177.0, "offset_error_mm": 2.4,
+                    "side_ok": None}, "wrong_grasp",
+                 "keep, +0 mm: missed, wrong way round (held flip, +2 mm, "
+                 "tilt 3°)"),
+                (held | {"offset_mm": -14.2, "tilt_deg": 3.0}, {
+                    "axis_error_deg": 3.0, "offset_error_mm": -14.2,
+                    "side_ok": None}, "wrong_grasp",
+                 "keep, +0 mm: missed, off the offset by 14 mm > 10 mm (held "
+                 "keep, -14 mm, tilt 3°)"),
+                (held | {"kind": None, "side": "wrist", "tilt_deg": 3.0}, {
+                    "axis_error_deg": 3.0, "offset_error_mm": 2.4,
+                    "side_ok": False}, "wrong_grasp",
+                 "keep, +0 mm: missed, wrong side (held another grasp, +2 "
+                 "mm, tilt 3°, wrist)"),
+                (None, {"axis_error_deg": None, "offset_error_mm": None,
+                        "side_ok": None}, "dropped",
+                 "keep, +0 mm: missed, dropped"),
+                (None, None, "timeout", "keep, +0 mm: missed, not held "
+                                        "(timeout)")):
+            with self.subTest(line=line):
+                self.assertEqual(grasp.describe(keep, achieved, error,
+                                                outcome=outcome), line)
+        self.assertEqual(grasp.describe(
+            {"kind": "any", "offset_mm": 0.0}, held, {
+                "axis_error_deg": None, "offset_error_mm": 2.4,
+                "side_ok": None}, outcome="caught"),
+            "any, +0 mm: caught (held keep, +2 mm, tilt 29°)")
 
     def test_stops_after_the_same_miss(self):
         from regrasp_drake.learning.learning_phase import MAX_SAME_MISSES

@@ -113,7 +113,7 @@ class InstalledWheelTest(unittest.TestCase):
         script = (
             "import regrasp_drake as rd, json, sys\n"
             "obj = rd.load_object('table1-row2')\n"
-            "run = rd.regrasp(obj, rd.Target('flip'), first_throw=True,\n"
+            "run = rd.regrasp(obj, rd.Target('flip'), watch=False,\n"
             "                 scenario=rd.load_scenario('Fast'))\n"
             "run.save_replay('replay.html'); run.plot('sensors.png')\n"
             "print(json.dumps([rd.__file__, run.success, run.throws,\n"

@@ -41,7 +41,9 @@ class RegraspNotebookTest(unittest.TestCase):
         self.assertIn("http", text)  # the live Meshcat's address
         self.assertIn("spatula-d250 {'h_cm'", text)
         # The catalogue object flipped, the own one kept, each on throw 1.
-        self.assertIn("flip, +0 mm: achieved flip", text)
+        # Each run's last line: the verdict first.
+        self.assertIn("flip, +0 mm: in the target grasp (held flip", text)
+        self.assertIn("keep, +0 mm: in the target grasp (held keep", text)
         self.assertEqual(text.count("success: True  throws: 1"), 2, text)
         self.assertEqual(text.count("achieved grasp: {"), 2, text)
         images = [o for c in notebook.cells for o in c.get("outputs", ())

@@ -46,10 +46,28 @@ class PinTest(unittest.TestCase):
         self.assertFalse(numerics.status()["numpy_avx512_kernels"])
 
     def test_too_late_once_numpy_is_imported(self):
-        with mock.patch.dict(os.environ, clear=True):
+        with mock.patch.dict(os.environ, clear=True), \
+                self.assertWarnsRegex(RuntimeWarning,
+                                      "imported after NumPy"):
             numerics.pin()  # NumPy is loaded in this process: no effect.
             self.assertNotIn("OPENBLAS_CORETYPE", os.environ)
             self.assertNotIn("NPY_DISABLE_CPU_FEATURES", os.environ)
+
+    def test_numpy_first_is_said_where_it_was_done(self):
+        clean = {k: v for k, v in os.environ.items() if k not in (
+            "NPY_DISABLE_CPU_FEATURES", "NPY_ENABLE_CPU_FEATURES",
+            "OPENBLAS_CORETYPE")}
+        late = "import numpy\nimport regrasp_drake\n"
+        out = subprocess.run([sys.executable, "-c", late], env=clean,
+                             capture_output=True, text=True, check=True)
+        self.assertIn("<string>:2: RuntimeWarning: regrasp_drake was "
+                      "imported after NumPy", out.stderr)
+        # Set before NumPy (by the user, or a pinned parent): nothing said.
+        out = subprocess.run([sys.executable, "-c", late], env=clean | {
+            "NPY_DISABLE_CPU_FEATURES": numerics.NUMPY_DISABLED,
+            "OPENBLAS_CORETYPE": "Haswell"},
+            capture_output=True, text=True, check=True)
+        self.assertEqual(out.stderr, "")
 
 
 def _first_import(path: Path) -> str | None:

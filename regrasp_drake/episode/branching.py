@@ -26,6 +26,7 @@ import os
 import pickle
 import signal
 import time
+import traceback
 
 import numpy as np
 
@@ -156,6 +157,12 @@ def _run_to_triggers(shared: Episode, parameters, t_final,
     return message, waiting
 
 
+class CellError(Exception):
+    """An exception a forked cell's process raised (only Drake's solver
+    failure is an outcome, episode/diagram.py), raised again in the
+    parent; its message is the child's traceback."""
+
+
 class _Children:
     """The forked children running cells, at most `workers` at once. Each
     sends its EpisodeResult through a pipe; report(indices, result) is
@@ -181,7 +188,10 @@ class _Children:
             try:
                 signal.pthread_sigmask(signal.SIG_SETMASK, mask)
                 os.close(read_fd)
-                result = run()
+                try:
+                    result = run()
+                except Exception:  # raised again in the parent
+                    result = CellError(traceback.format_exc())
                 with os.fdopen(write_fd, "wb") as f:
                     f.write(pickle.dumps(result))
             finally:
@@ -204,7 +214,10 @@ class _Children:
         os.close(fd)
         del self._running[pid]
         check_interrupt()
-        self._report(indices, pickle.loads(data) if data else self._died())
+        result = pickle.loads(data) if data else self._died()
+        if isinstance(result, CellError):
+            raise result
+        self._report(indices, result)
 
     def kill_all(self) -> None:
         """No child outlives the command."""

@@ -185,20 +185,46 @@ def lock_hand(plant: MultibodyPlant, plant_context, hand) -> None:
         plant.get_joint(index).Lock(plant_context)
 
 
+# How Drake says its contact solver or integrator failed: a RuntimeError
+# whose message starts with one of these (SAP's and TAMSI's discrete
+# updates, multibody/plant; CENIC's convex solve, multibody/cenic; an
+# error-controlled integrator's step shrunk below its minimum,
+# systems/analysis/integrator_base). That failure is what the simulated
+# world did: the episode's outcome "failed". Any other exception is a bug
+# and propagates.
+SOLVER_FAILURES = (
+    "The SAP solver failed to converge",
+    "MultibodyPlant's discrete update solver failed to converge",
+    "CenicIntegrator: optimization failed",
+    "Error control wants to select step smaller than minimum allowed",
+)
+
+
+def is_solver_failure(error: BaseException) -> bool:
+    """Whether `error` is Drake's contact solver or integrator failing
+    (SOLVER_FAILURES)."""
+    return (isinstance(error, RuntimeError)
+            and str(error).lstrip().startswith(SOLVER_FAILURES))
+
+
 def advance_to_outcome(simulator, episode: EpisodeDiagram, scenario,
                        t_final=None) -> str:
     """Advances until the grasp monitor (or a failure) ends the episode, or
-    to t_final. Returns "" or the failure's message: an unreachable pose, or
-    a failed contact solve (recorded, never raised)."""
+    to t_final. Returns "" or the failure's message: an unreachable pose
+    (the state machine's), or the first line of Drake's contact solver or
+    integrator failure (`is_solver_failure`: recorded, not raised). Every
+    other exception propagates."""
     if t_final is None:
         t_final = scenario.monitor.max_time_s + 1.0
     try:
         status = simulator.AdvanceTo(t_final)
-        # An unreachable pose.
-        if status.system() is episode.controller.state_machine:
-            return status.message()
-    except Exception as e:  # a failed contact solve
-        return str(e).strip().splitlines()[0] if str(e).strip() else repr(e)
+    except RuntimeError as e:
+        if not is_solver_failure(e):
+            raise
+        return str(e).strip().splitlines()[0]
+    # An unreachable pose.
+    if status.system() is episode.controller.state_machine:
+        return status.message()
     return ""
 
 

@@ -75,9 +75,21 @@ class EpisodeResult:
         """Held in the target grasp (for target `any`: held)."""
         return self.outcome == "caught"
 
+    @property
+    def miss_reason(self) -> str | None:
+        """Why it is not in the target grasp (grasp.miss_reason): dropped
+        (not held), wrong_way_round, wrong_side, tilted, off_offset; None
+        when it is."""
+        return grasp.miss_reason(self.caught, self.grasp_error,
+                                 side_apart=True)
+
     def regrasp_line(self) -> str:
-        """e.g. "flip, +0 mm: achieved flip, +3 mm, tilt 12°"."""
-        return grasp.describe(self.target, self.achieved_grasp)
+        """The verdict first, then why (grasp.describe): e.g. "flip, +0 mm:
+        in the target grasp (held flip, +3 mm, tilt 12°)", "keep, +0 mm:
+        missed, tilted 29° > 20° (held keep, +2 mm, tilt 29°)"."""
+        return grasp.describe(self.target, self.achieved_grasp,
+                              self.grasp_error, outcome=self.outcome,
+                              message=self.message)
 
     def summary(self) -> dict:
         return {
@@ -216,7 +228,10 @@ def read_ending(episode: EpisodeDiagram, context, outcome: str) -> dict:
         contacts = contact_verdict(
             plant, plant.GetMyContextFromRoot(context), station.object_body,
             plant.GetBodyByName("palm", station.hand))
-    except Exception:  # the solve that ended the episode fails again
+    except RuntimeError:
+        if outcome != "failed":
+            raise
+        # The contact solve that ended the episode fails again.
         contacts = dict.fromkeys(_CONTACT_FIELDS)
     return {"drop_reason": reason} | contacts
 

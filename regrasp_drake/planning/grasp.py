@@ -64,6 +64,9 @@ OFFSET_TOLERANCE_MM = 10.0
 # patches reach about as far again).
 PALM_LENGTH_M = 0.115
 COM_INSIDE_EDGE_M = 0.02
+# The offsets a target may name, [mm], whatever the object (each object's
+# reach is narrower: offset_range_mm).
+OFFSET_LIMIT_MM = 100.0
 
 
 @dc.dataclass(frozen=True)
@@ -73,11 +76,18 @@ class Target:
     offset_mm: float = 0.0
 
     def __post_init__(self):
-        if self.kind not in TARGET_KINDS:
-            raise field_error("target", self.kind, f"one of {TARGET_KINDS}")
+        if not (isinstance(self.kind, str) and self.kind in TARGET_KINDS):
+            raise field_error("Target kind", self.kind,
+                              "one of " + ", ".join(TARGET_KINDS))
         if not (isinstance(self.offset_mm, (int, float))
-                and math.isfinite(self.offset_mm)):
-            raise field_error("offset_mm", self.offset_mm, "a finite number")
+                and not isinstance(self.offset_mm, bool)
+                and math.isfinite(self.offset_mm)
+                and abs(self.offset_mm) <= OFFSET_LIMIT_MM):
+            raise field_error(
+                "Target offset_mm", self.offset_mm,
+                f"a number in [-{OFFSET_LIMIT_MM:g}, +{OFFSET_LIMIT_MM:g}] "
+                "mm (the palm centre along the object's axis from its "
+                "centre of mass)")
 
     def as_dict(self) -> dict:
         return {"kind": self.kind, "offset_mm": float(self.offset_mm)}
@@ -213,17 +223,22 @@ def judge(target: Target, obj: ObjectSpec, start: Grasp,
 MISS_REASONS = ("dropped", "wrong_way_round", "tilted", "off_offset")
 
 
-def miss_reason(held: bool, error: dict | None) -> str | None:
+def miss_reason(held: bool, error: dict | None, *,
+                side_apart: bool = False) -> str | None:
     """Why a throw under a grasp target is not in it, from whether it held
     the object and its `grasp_error` (Verdict.as_dict): "dropped" (not
     held), "wrong_way_round" (the axis reversed from the target's, or the
     side another), "tilted" (the axis more than AXIS_TOLERANCE_DEG from the
     palm's y), "off_offset" (more than OFFSET_TOLERANCE_MM from the target's
-    offset); None when it is in the target grasp."""
+    offset); None when it is in the target grasp. side_apart: the side
+    another, with the axis the right way round, is "wrong_side" (the
+    learning phase and the studies count it as wrong_way_round)."""
     if not held or not error or error.get("axis_error_deg") is None:
         return "dropped" if not held else None
-    if error["axis_error_deg"] >= 90.0 or error.get("side_ok") is False:
+    if error["axis_error_deg"] >= 90.0:
         return "wrong_way_round"
+    if error.get("side_ok") is False:
+        return "wrong_side" if side_apart else "wrong_way_round"
     if error["axis_error_deg"] > AXIS_TOLERANCE_DEG:
         return "tilted"
     if abs(error["offset_error_mm"]) > OFFSET_TOLERANCE_MM:
@@ -244,15 +259,34 @@ def kind_of(obj: ObjectSpec, start: Grasp, achieved: Grasp) -> str | None:
     return None
 
 
-def describe(target: dict, achieved: dict | None) -> str:
-    """One line for a regrasp's result, e.g. "flip, +0 mm: achieved flip,
-    +3 mm" (target and achieved: the dicts of Target.as_dict and of an
-    episode's achieved grasp)."""
+def describe(target: dict, achieved: dict | None, error: dict | None, *,
+             outcome: str = "dropped", message: str = "") -> str:
+    """One line for a regrasp's result, its verdict first: "flip, +0 mm: in
+    the target grasp (held flip, +3 mm, tilt 12°)" ("any, +0 mm: caught
+    (held flip, ...)" for `any`), "keep, +0 mm: missed,
+    tilted 29° > 20° (held keep, +2 mm, tilt 29°)", "flip, +0 mm: missed,
+    dropped" (target, achieved and error: the dicts of Target.as_dict, of
+    an episode's achieved grasp (None: not held) and of its grasp_error,
+    Verdict.as_dict; outcome and message: the episode's, for one not
+    held)."""
     asked = Target(target["kind"], target["offset_mm"]).label()
     if achieved is None:
-        return f"{asked}: not held"
-    return (f"{asked}: achieved {achieved.get('kind') or 'another grasp'}, "
+        why = outcome if outcome in ("dropped", "failed") else (
+            f"not held ({outcome})")
+        return f"{asked}: missed, {why}" + (f": {message}" if message else "")
+    held = (f"held {achieved.get('kind') or 'another grasp'}, "
             + describe_grasp(achieved))
+    reason = miss_reason(True, error, side_apart=True)
+    if reason is None:
+        verdict = "caught" if target["kind"] == "any" else "in the target grasp"
+        return f"{asked}: {verdict} ({held})"
+    why = {"wrong_way_round": "wrong way round", "wrong_side": "wrong side",
+           "tilted": (f"tilted {error['axis_error_deg']:.0f}° > "
+                      f"{AXIS_TOLERANCE_DEG:.0f}°"),
+           "off_offset": (f"off the offset by "
+                          f"{abs(error['offset_error_mm']):.0f} mm > "
+                          f"{OFFSET_TOLERANCE_MM:.0f} mm")}[reason]
+    return f"{asked}: missed, {why} ({held})"
 
 
 def describe_grasp(g: dict) -> str:
@@ -288,12 +322,14 @@ def _half_extent_y(piece) -> float:
     return piece.radius
 
 
-def check_reachable(target: Target, obj: ObjectSpec) -> None:
-    """Refuses a target offset outside `offset_range_mm` (InputError)."""
+def check_reachable(target: Target, obj: ObjectSpec,
+                    field: str = "target offset_mm") -> None:
+    """Refuses a target offset outside `offset_range_mm` (InputError naming
+    `field`, where the caller gave the offset)."""
     lo, hi = offset_range_mm(obj)
     if not lo - 1e-9 <= target.offset_mm <= hi + 1e-9:
         raise InputError(
-            f"object {obj.name}: target offset_mm {target.offset_mm:+g} is "
+            f"object {obj.name}: {field} {target.offset_mm:+g} is "
             f"out of reach, expected an offset in [{lo:+.1f}, {hi:+.1f}] mm "
             "(the palm centre on the object, its centre of mass "
             f"{1e3 * COM_INSIDE_EDGE_M:.0f} mm inside the palm's edge)")

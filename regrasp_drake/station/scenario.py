@@ -508,36 +508,44 @@ def lowers_moving(scenario: "Scenario") -> bool:
     return bool(moving)
 
 
+# What load_scenario's errors call its path, name and text: the command
+# line's flags (the API passes its own arguments' names).
+SCENARIO_FLAGS = ("--scenario", "--scenario-name", "--scenario-text")
+
+
 def load_scenario(path: str | Path | None = None, *, name: str | None = None,
-                  text: str | None = None) -> Scenario:
+                  text: str | None = None,
+                  names: tuple[str, str, str] = SCENARIO_FLAGS) -> Scenario:
     """Loads and validates a scenario.
 
     path: a scenario YAML file; with `name`, a file of named scenarios
     (name -> scenario) to take `name` from. Without either, the shipped
     default (DEFAULT_SCENARIO_NAME in SCENARIOS_PATH); `name` alone is one of
     SCENARIOS_PATH. text: YAML text (a flow mapping, say) whose fields
-    replace the loaded scenario's, mappings merged key by key."""
+    replace the loaded scenario's, mappings merged key by key. names: what
+    an InputError calls path, name and text (default: the flags)."""
+    path_name, name_name, text_name = names
     if path is None:
         path, name = SCENARIOS_PATH, name or DEFAULT_SCENARIO_NAME
     path = Path(path)
     if not path.exists():
-        raise field_error("--scenario", str(path), "an existing YAML file")
+        raise field_error(path_name, str(path), "an existing YAML file")
     where = str(path)
     data = load_yaml(path, "YAML scenario file", tags=True)
     if name is not None:
         if not isinstance(data, dict) or name not in data:
-            names = list(data) if isinstance(data, dict) else []
-            raise field_error("--scenario-name", name,
-                              f"one of {names[:20]} (the scenarios in {path})")
+            scenarios = list(data) if isinstance(data, dict) else []
+            raise field_error(name_name, name, f"one of {scenarios[:20]} "
+                                               f"(the scenarios in {path})")
         data, where = data[name], f"{path}: {name}"
     data = _checked(data, where)
     if text is not None:
         try:
             override = parse_yaml(text, tags=True)
         except InputError as e:
-            raise InputError(f"--scenario-text: {e}") from None
-        data = _merged(data, _checked(override, "--scenario-text"))
-        where += " with --scenario-text"
+            raise InputError(f"{text_name}: {e}") from None
+        data = _merged(data, _checked(override, text_name))
+        where += f" with {text_name}"
     try:
         # The data as parsed above (1e5 a number), not the file again.
         scenario = yaml_load_typed(schema=Scenario, data=dump_yaml(data))

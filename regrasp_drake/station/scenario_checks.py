@@ -16,7 +16,7 @@ from pydrake.systems.analysis import GetIntegrationSchemes, SimulatorConfig
 
 from regrasp_drake.errors import field_error
 from regrasp_drake.parameter_space import H_CATCH_RANGE, H_DOWN_RANGE
-from regrasp_drake.planning.grasp import TARGET_KINDS
+from regrasp_drake.planning.grasp import OFFSET_LIMIT_MM, TARGET_KINDS
 from regrasp_drake.world.robot import (
     ARM_MODEL_NAME,
     HAND_MODEL_NAME,
@@ -240,7 +240,8 @@ def _check_monitor_and_regrasp(s) -> None:
     if s.regrasp.target not in TARGET_KINDS:
         raise field_error("regrasp.target", s.regrasp.target,
                           f"one of {TARGET_KINDS}")
-    _in_range("regrasp.offset_mm", s.regrasp.offset_mm, -100.0, 100.0, " mm")
+    _in_range("regrasp.offset_mm", s.regrasp.offset_mm, -OFFSET_LIMIT_MM,
+              OFFSET_LIMIT_MM, " mm")
 
 
 def _check_directives(directives: list[ModelDirective]) -> None:
