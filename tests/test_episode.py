@@ -7,6 +7,7 @@ import unittest
 from unittest import mock
 
 import numpy as np
+import torch
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import LeafSystem
 from pydrake.systems.primitives import LogVectorOutput
@@ -18,7 +19,10 @@ from regrasp_drake.episode.episode import (
     release_time,
     run_episode,
 )
-from regrasp_drake.throw_catch import plan_watched, watch
+from regrasp_drake.planning.grasp import Target
+from regrasp_drake.station.scenario import load_scenario, with_target
+from regrasp_drake.throw_catch import catch_once, plan_watched, watch
+from regrasp_drake.world.objects import resolve_object
 from tests.fixtures import Row2Fixture
 
 _CELL = (0.28, -0.12)  # (h_catch, h_down), [m]
@@ -106,6 +110,31 @@ class ExceptionsTest(Row2Fixture, unittest.TestCase):
                          "at simulation time = 0.011. Reasons for divergence "
                          "and possible solutions include:")
         self.assertLess(result.sim_time_s, 0.05)
+
+
+
+class LandingStepTest(unittest.TestCase):
+    """A target catch lands in the same grasp at the shipped landing step
+    (0.25 ms through the landing, 1 ms around it) and at half of both (0.125
+    and 0.5 ms): one pair per throw kind, a spinning flip and a keep."""
+
+    def test_the_same_grasp_at_half_the_step(self):
+        torch.set_num_threads(1)
+        half = "{landing_time_step_s: 0.000125, catch_time_step_s: 0.0005}"
+        for name, target in (("table1-row2", Target("flip")),
+                             ("table1-row4", Target("keep"))):
+            obj = resolve_object(name=name)
+            results = [catch_once(with_target(load_scenario(text=text),
+                                              target), obj,
+                                  h_catch=0.32, h_down=-0.07)[0]
+                       for text in (None, half)]
+            for result in results:
+                self.assertTrue(result.success, (name, result.grasp_error))
+            shipped, finer = (r.achieved_grasp for r in results)
+            self.assertLess(abs(shipped["offset_mm"] - finer["offset_mm"]),
+                            1.0, name)
+            self.assertLess(abs(shipped["tilt_deg"] - finer["tilt_deg"]),
+                            1.0, name)
 
 
 if __name__ == "__main__":
