@@ -120,10 +120,39 @@ def build_episode_diagram(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
         MeshcatVisualizer.AddToBuilder(
             builder, station.GetOutputPort("query_object"), meshcat,
             MeshcatVisualizerParams(publish_period=1 / 60))
-    return EpisodeDiagram(diagram=builder.Build(), station=station,
+    # The episode's own ports, then the diagram, named.
+    export_episode_ports(builder, station, controller)
+    diagram = builder.Build()
+    diagram.set_name("episode")
+    return EpisodeDiagram(diagram=diagram, station=station,
                           controller=controller, loggers=loggers,
                           meshcat=meshcat, X_WP_initial=X_WP_initial,
                           X_WO_initial=X_WO_initial)
+
+
+# The episode diagram's output ports: the station's of its own name, and
+# the catch controller's.
+EPISODE_STATION_OUTPUTS = ("object_state", "arm_state", "hand_state",
+                           "ir_levels", "bumper", "contact_results",
+                           "query_object")
+
+
+def export_episode_ports(builder: DiagramBuilder, station: Station,
+                         controller: CatchController) -> None:
+    """Exports the episode's output ports from `builder`:
+    EPISODE_STATION_OUTPUTS (the station's), `phase` (the catch state
+    machine's, catch_state_machine.Phase), `catch_parameters` (h_catch,
+    h_down, [m], from the parameters' source) and `monitor_state` (the
+    grasp monitor's, GraspMonitor). It has no input port: what an episode
+    is to do is set in its context (CatchController.set_task)."""
+    for name in EPISODE_STATION_OUTPUTS:
+        builder.ExportOutput(station.GetOutputPort(name), name)
+    builder.ExportOutput(controller.state_machine.GetOutputPort("phase"),
+                         "phase")
+    builder.ExportOutput(controller.parameters.get_output_port(),
+                         "catch_parameters")
+    builder.ExportOutput(
+        controller.monitor.GetOutputPort("monitor_state"), "monitor_state")
 
 
 def add_loggers(builder: DiagramBuilder, station: Station,
@@ -202,6 +231,17 @@ def advance_to_outcome(simulator, episode: EpisodeDiagram, scenario,
     return ""
 
 
+def leaf_systems(diagram: Diagram):
+    """The systems of `diagram` and of the diagrams nested in it (the
+    station's, the arm controller's), depth first, in their diagrams'
+    order: the systems that hold state."""
+    for system in diagram.GetSystems():
+        if isinstance(system, Diagram):
+            yield from leaf_systems(system)
+        else:
+            yield system
+
+
 def continue_with(simulator: Simulator, episode: EpisodeDiagram,
                   other: EpisodeDiagram, scenario: Scenario) -> Simulator:
     """A simulator of `other`, an episode diagram built like `episode` but
@@ -215,8 +255,8 @@ def continue_with(simulator: Simulator, episode: EpisodeDiagram,
     ApplySimulatorConfig(scenario.simulator_config, target)
     context = target.get_mutable_context()
     context.SetTime(source.get_time())
-    for a, b in zip(episode.diagram.GetSystems(), other.diagram.GetSystems(),
-                    strict=True):
+    for a, b in zip(leaf_systems(episode.diagram),
+                    leaf_systems(other.diagram), strict=True):
         if type(a) is not type(b):
             raise ValueError(f"continue_with: {a.get_name()} and "
                              f"{b.get_name()}: not diagrams built alike")
