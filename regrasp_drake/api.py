@@ -42,6 +42,7 @@ from regrasp_drake.learning.run_replay import RunReplay
 from regrasp_drake.paths import MODELS_DIR, OUT_DIR
 from regrasp_drake.planning.grasp import Target, check_reachable
 from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.plots import plot_episode
 from regrasp_drake.station import scenario as scenarios
 from regrasp_drake.station.mlp_system import CatchMlp, load_weights
 from regrasp_drake.station.scenario import Scenario, target_of, with_target
@@ -129,8 +130,6 @@ class Run:
     def plot(self, path) -> Path:
         """Writes a PNG of the last throw's sensors over time (the paper's
         Fig. 11) and the object's height and tilt. Returns path."""
-        # matplotlib (0.4 s to import) only when a plot is asked for.
-        from regrasp_drake.plots import plot_episode
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         return plot_episode(self.episode, Path(path))
 
