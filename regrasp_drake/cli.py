@@ -532,8 +532,9 @@ def _add_episode_commands(sub) -> None:
                    default=InOutDir("diagram.dot"),
                    help="the Graphviz file (default: diagram.dot in "
                         "--out-dir)")
-    p.add_argument("--max-depth", type=int, default=1, metavar="N",
-                   help="levels of subsystems drawn (default 1)")
+    p.add_argument("--max-depth", type=int, default=2, metavar="N",
+                   help="levels of subsystems drawn (default 2: the "
+                        "episode's and, inside the station, the station's)")
     _add_out_dir_arg(p)
     p.set_defaults(func=_cmd_diagram)
 

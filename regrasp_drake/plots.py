@@ -3,29 +3,34 @@ object's flight."""
 
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.colors import ListedColormap  # noqa: E402
-from matplotlib.patches import Patch, Rectangle  # noqa: E402
+import numpy as np
 
 from regrasp_drake import atomic_io
-from regrasp_drake.grid import ending, ending_counts  # noqa: E402
-from regrasp_drake.learning.labels import SHAPE, label_cell  # noqa: E402
-from regrasp_drake.parameter_space import (  # noqa: E402
+from regrasp_drake.grid import ending, ending_counts
+from regrasp_drake.learning.labels import SHAPE, label_cell
+from regrasp_drake.parameter_space import (
     ENDINGS,
     H_CATCH_VALUES,
     H_DOWN_VALUES,
 )
-from regrasp_drake.planning.grasp import describe_grasp  # noqa: E402
-from regrasp_drake.station.catch_state_machine import Phase  # noqa: E402
+from regrasp_drake.planning.grasp import describe_grasp
+from regrasp_drake.station.catch_state_machine import Phase
+
+
+def _pyplot():
+    """matplotlib's pyplot, drawing to files (Agg), imported when a picture
+    is drawn: 0.4 s that importing the API (regrasp_drake.api, which every
+    command does) does not pay."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
 
 
 def plot_episode(result, path: Path) -> Path:
     """Writes a PNG: palm IR 1-3, the nearest approach IR and the bumper over
     time, the phases shaded; and the object's height and axis tilt."""
+    plt = _pyplot()
     logs = result.logs
     t = logs.t
     fig, axes = plt.subplots(3, 1, figsize=(9, 9), sharex=True)
@@ -59,6 +64,7 @@ def plot_episode(result, path: Path) -> Path:
 
 
 def _shade_phases(ax, t, phase):
+    plt = _pyplot()
     colors = plt.cm.Pastel1(np.linspace(0, 1, len(Phase)))
     start = 0
     for k in range(1, len(t) + 1):
@@ -83,6 +89,9 @@ def draw_endings(ax, rows: dict, *, marks=()) -> None:
     """Draws a success map on `ax`: h_down across, h_catch up (m), each cell
     coloured by how its episode ended (grid.ending), white where it has not
     run; `marks`: (cell, colour) pairs framed on top."""
+    from matplotlib.colors import ListedColormap
+    from matplotlib.patches import Rectangle
+
     keys = list(ENDINGS)
     cmap = ListedColormap([ENDING_COLOURS[k] for k in keys])
     cmap.set_bad("white")
@@ -106,6 +115,8 @@ def draw_endings(ax, rows: dict, *, marks=()) -> None:
 def ending_legend(keys=None, extra=()) -> list:
     """Legend handles for draw_endings' colours (every ending, or `keys`),
     then `extra` (label, colour) pairs for framed cells."""
+    from matplotlib.patches import Patch
+
     return ([Patch(color=ENDING_COLOURS[k], label=ENDINGS[k])
              for k in (keys or ENDINGS)]
             + [Patch(facecolor="none", edgecolor=colour, label=label)
@@ -116,6 +127,7 @@ def plot_success_map(rows: dict, path: Path, *, title: str) -> Path:
     """`regrasp-drake grid --plot`: one map coloured by ending, its label
     (the data set's rule: the catching cell farthest from any failed cell,
     learning/labels.label_cell) framed, with the count of each ending."""
+    plt = _pyplot()
     counts = ending_counts(rows.values())
     fig, ax = plt.subplots(figsize=(7.5, 6.2))
     caught = np.zeros(SHAPE, bool)

@@ -336,7 +336,8 @@ def release_correction(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     plans' palms (position and turn), so the closed-form flight's own error
     cancels. A release equal to the watched one bit for bit (every throw
     without noise) leaves the plan untouched. `parameters` (h_catch, h_down)
-    stay; `record`, a ReleaseCorrection, is filled in."""
+    stay (None: the MLP system's, which stay too); `record`, a
+    ReleaseCorrection, is filled in."""
     record = ReleaseCorrection() if record is None else record
     nominal = []  # computed once, on the first release that differs
 
@@ -378,14 +379,18 @@ def release_correction(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
 
 
 def catch_planned(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
-                  plan: CatchPlan, parameters, *, meshcat=None,
-                  throw_number: int = 1, record=None) -> EpisodeResult:
+                  plan: CatchPlan, parameters, *, network=None,
+                  features=None, meshcat=None, throw_number: int = 1,
+                  record=None) -> EpisodeResult:
     """A catching throw under a watched or predicted plan with `parameters`
-    (h_catch, h_down), [m], corrected at its own release
-    (`release_correction`, which fills in `record`, a ReleaseCorrection);
-    `meshcat`: where it is drawn; throw_number seeds the release noise."""
+    (h_catch, h_down), [m] (None: the grid cell the MLP system in the
+    episode's diagram predicts from the network `network` and its
+    `features`), corrected at its own release (`release_correction`, which
+    fills in `record`, a ReleaseCorrection); `meshcat`: where it is drawn;
+    throw_number seeds the release noise."""
     return run_episode(
         scenario, obj, ik=ik, X_WG=plan.X_WG, catch_parameters=parameters,
+        mlp_features=features, model=network,
         meshcat=meshcat, throw_number=throw_number,
         at_release=release_correction(scenario, obj, ik, plan, parameters,
                                       record))
@@ -403,13 +408,14 @@ def catch_once(scenario: Scenario, obj: ObjectSpec, *, h_catch: float,
 
 
 def episode_graphviz(scenario: Scenario, obj: ObjectSpec, *,
-                     max_depth: int = 1) -> str:
-    """The catching episode's Diagram as `catch` builds it for `obj`, in
-    Graphviz's language (Drake's Diagram.GetGraphvizString, `max_depth`
-    levels of subsystems): the throw watched and the catch planned first,
-    so that the grasp pose is the planned one and, when the scenario's
-    catch.parameter_source is "mlp", the MLP system is fed the planned
-    features (v_catch and the object's)."""
+                     max_depth: int = 2) -> str:
+    """The catching episode's Diagram as a learning phase's first
+    catching throw builds it for `obj`, in Graphviz's language (Drake's
+    Diagram.GetGraphvizString, `max_depth` levels of subsystems: the
+    episode's, then the station's): the throw watched and the catch planned
+    first, so that the grasp pose is the planned one and the MLP system
+    (the scenario's catch.weights) is fed the planned features (v_catch
+    and the object's)."""
     ik = ArmIk(scenario.directives)
     watched = watch(scenario, obj, ik)
     plan = plan_watched(scenario, obj, ik, watched)

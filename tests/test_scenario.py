@@ -7,13 +7,16 @@ import unittest
 from pathlib import Path
 
 import numpy as np
+import torch
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import DiscreteContactApproximation
 
 from regrasp_drake.episode.diagram import build_episode_diagram, initialize
 from regrasp_drake.errors import InputError
 from regrasp_drake.input_files import parse_yaml
+from regrasp_drake.parameter_space import cell_parameters, nearest_cell
 from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station.mlp_system import CatchMlp
 from regrasp_drake.station.scenario import (
     Scenario,
     load_scenario,
@@ -260,6 +263,27 @@ class OneOfEverythingTest(unittest.TestCase):
             X_WG=RigidTransform([0.8, 0.0, 0.7]),
             mlp_features=[-3.8, 0.0, 0.0, 0.05, 0.0])
         self.assertTrue(episode.diagram.HasSubsystemNamed("mlp"))
+
+    def test_the_callers_network_predicts_the_cell(self):
+        # A network that answers (0.11, -0.03) m whatever the features: the
+        # episode's MLP system gives its nearest cell, (0.12, -0.03).
+        model = CatchMlp()
+        with torch.no_grad():
+            model.output.weight.zero_()
+            model.output.bias.zero_()
+            model.output_mean.copy_(torch.tensor([0.11, -0.03], dtype=torch.float64))
+        episode = build_episode_diagram(
+            self.scenario, self.obj, ik=self.ik,
+            X_WG=RigidTransform([0.8, 0.0, 0.7]),
+            mlp_features=[-3.8, 0.0, 0.0, 0.05, 0.0], model=model)
+        mlp = episode.controller.parameters
+        context = episode.diagram.CreateDefaultContext()
+        mlp.ExecuteInitializationEvents(mlp.GetMyMutableContextFromRoot(context))
+        np.testing.assert_array_equal(
+            episode.diagram.GetOutputPort("catch_parameters").Eval(context),
+            cell_parameters(nearest_cell(0.11, -0.03)))
+        self.assertEqual(cell_parameters(nearest_cell(0.11, -0.03)),
+                         (0.12, -0.03))
 
 
 if __name__ == "__main__":

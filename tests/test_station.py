@@ -18,6 +18,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.controllers import InverseDynamicsController
 from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource
 
 from regrasp_drake.episode.diagram import build_episode_diagram
 from regrasp_drake.episode.episode import run_episode
@@ -32,7 +33,11 @@ from regrasp_drake.station import throw
 from regrasp_drake.station.catch_state_machine import Phase
 from regrasp_drake.station.scenario import load_scenario
 from regrasp_drake.station.start_pose import start_poses
-from regrasp_drake.station.station import add_station, make_arm_controller
+from regrasp_drake.station.station import (
+    MakeStation,
+    Station,
+    make_arm_controller,
+)
 from regrasp_drake.throw_catch import plan_catch, watch
 from regrasp_drake.world import robot
 from regrasp_drake.world.objects import load_catalogue
@@ -216,19 +221,19 @@ def _rotation(quaternion_wxyz):
 
 
 class TestStationPorts(unittest.TestCase):
-    """The station alone, its named ports exported, is a Diagram that
-    something other than the catch controller can drive."""
+    """The station alone, MakeStation's Diagram with its named ports
+    exported, is a Diagram that something other than the catch controller
+    can drive."""
 
     @classmethod
     def setUpClass(cls):
         _setup(cls)
-        builder = DiagramBuilder()
-        cls.station = add_station(builder, cls.scenario, cls.obj)
-        for name, port in cls.station.inputs.items():
-            builder.ExportInput(port, name)
-        for name, port in cls.station.outputs.items():
-            builder.ExportOutput(port, name)
-        cls.diagram = builder.Build()
+        cls.diagram = MakeStation(cls.scenario, cls.obj)
+        cls.station = Station.of(cls.diagram)
+
+    def test_named_diagram(self):
+        self.assertEqual(self.diagram.get_name(), "station")
+        self.assertIs(self.station.diagram, self.diagram)
 
     def test_named_ports(self):
         self.assertEqual(
@@ -280,6 +285,90 @@ class TestStationPorts(unittest.TestCase):
         with self.assertRaisesRegex(ValueError, "ArmIk"):
             build_episode_diagram(self.scenario, self.obj, ik=ArmIk(other),
                                   X_WG=None)
+
+
+def _held_references(scenario) -> dict:
+    """Constant references for the station's inputs: the arm held at the
+    throw's start, the fingers open."""
+    q0 = throw.start_q(scenario.throw)
+    return {"arm_desired_state": np.concatenate([q0, np.zeros(6)]),
+            "arm_desired_acceleration": np.zeros(6),
+            "hand_desired_state": np.zeros(20)}
+
+
+def _lay_object(station: Station, scenario, obj, root_context) -> None:
+    """The arm at the throw's start and the object lying in the palm, in
+    the plant of `station` (nested anywhere in the root context's
+    diagram)."""
+    plant = station.plant
+    plant_context = plant.GetMyMutableContextFromRoot(root_context)
+    plant.SetPositions(plant_context, station.arm,
+                       throw.start_q(scenario.throw))
+    plant.SetFreeBodyPose(plant_context, station.object_body,
+                          start_poses(scenario, obj)[1])
+
+
+class TestStationNested(unittest.TestCase):
+    """A Drake user's diagram with the station in it, as with
+    manipulation's MakeHardwareStation."""
+
+    @classmethod
+    def setUpClass(cls):
+        _setup(cls)
+
+    def test_nested_in_five_lines(self):
+        references = _held_references(self.scenario)
+        # The five lines: the station nested, driven, built and simulated.
+        builder = DiagramBuilder()
+        station = builder.AddSystem(MakeStation(self.scenario, self.obj))
+        for name, value in references.items():
+            builder.Connect(builder.AddSystem(ConstantVectorSource(value)).get_output_port(), station.GetInputPort(name))  # noqa: E501
+        simulator = Simulator(builder.Build())
+        # (the object laid in the palm first, for a fact to check)
+        context = simulator.get_mutable_context()
+        _lay_object(Station.of(station), self.scenario, self.obj, context)
+        simulator.AdvanceTo(0.1)
+        arm = station.GetOutputPort("arm_state").Eval(
+            station.GetMyContextFromRoot(context))
+        self.assertLess(np.abs(arm[:6] - references["arm_desired_state"][:6])
+                        .max(), 1e-3)
+
+    def test_two_stations_in_one_builder(self):
+        """Two stations side by side in one builder, each driven by its own
+        references: both simulate, each plant on its own, alike."""
+        builder = DiagramBuilder()
+        stations = [builder.AddSystem(MakeStation(self.scenario, self.obj,
+                                                  name=name))
+                    for name in ("left", "right")]
+        for station in stations:
+            for name, value in _held_references(self.scenario).items():
+                source = builder.AddSystem(ConstantVectorSource(value))
+                builder.Connect(source.get_output_port(),
+                                station.GetInputPort(name))
+        diagram = builder.Build()
+        simulator = Simulator(diagram)
+        context = simulator.get_mutable_context()
+        for station in stations:
+            _lay_object(Station.of(station), self.scenario, self.obj, context)
+        # The right one's object dropped from 5 cm higher: not the left's.
+        right = Station.of(stations[1])
+        plant_context = right.plant.GetMyMutableContextFromRoot(context)
+        X_WO = right.plant.GetFreeBodyPose(plant_context, right.object_body)
+        right.plant.SetFreeBodyPose(plant_context, right.object_body,
+                                    RigidTransform(X_WO.rotation(),
+                                                   X_WO.translation()
+                                                   + [0, 0, 0.05]))
+        simulator.AdvanceTo(0.1)
+        states = [s.GetOutputPort("object_state").Eval(
+            s.GetMyContextFromRoot(context)) for s in stations]
+        # Both lie on their palms near where they were laid; the right one,
+        # dropped, is still falling or bouncing, not where the left one is.
+        p_WO = start_poses(self.scenario, self.obj)[1].translation()
+        np.testing.assert_allclose(states[0][4:7], p_WO, atol=0.01)
+        self.assertGreater(np.abs(states[1][4:7] - states[0][4:7]).max(),
+                           1e-4)
+        self.assertEqual(sorted(s.get_name() for s in stations),
+                         ["left", "right"])
 
 
 if __name__ == "__main__":

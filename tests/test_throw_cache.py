@@ -14,8 +14,12 @@ from regrasp_drake import memo
 from regrasp_drake.episode import episode
 from regrasp_drake.episode.episode import THROWS, ThrowCache, run_episode
 from regrasp_drake.episode.result import Logs
+from regrasp_drake.learning.learning_phase import network_features, predict
+from regrasp_drake.parameter_space import cell_parameters, nearest_cell
+from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.catch_state_machine import ThrowPerturbation
+from regrasp_drake.station.mlp_system import load_weights
 from regrasp_drake.station.scenario import ThrowNoise, load_scenario
 from regrasp_drake.throw_catch import plan_catch
 from regrasp_drake.world.objects import resolve_object
@@ -114,11 +118,44 @@ class ThrowCacheTest(unittest.TestCase):
                               meshcat)
         self.assertEqual(len({key(noisy, n) for n in (1, 2)}), 2)
         self.assertEqual(len({key(self.scenario, n) for n in (1, 2)}), 1)
-        # Not reused: the MLP's parameters, Meshcat, a plant without a
-        # handover.
-        self.assertIsNone(key(self.scenario, 1, None))
+        # The MLP's parameters: the same throw. Not reused: Meshcat, a
+        # plant without a handover.
+        self.assertEqual(key(self.scenario, 1, None), key(self.scenario, 1))
         self.assertIsNone(key(self.scenario, 1, (0.2, 0.0), object()))
         self.assertIsNone(key(load_scenario(name="Fast"), 1, (0.2, 0.0)))
+
+    def test_network_catch_goes_on_from_the_kept_throw(self):
+        """A catch whose cell the MLP system in its diagram predicts, with
+        the caller's network, goes on from the watch's kept throw: the same
+        episode, bit for bit, as simulated from the start and as the catch
+        given that cell."""
+        model = load_weights(MODELS_DIR / self.scenario.catch.weights)[0]
+        THROWS.clear()
+        watched = run_episode(self.scenario, self.obj, ik=self.ik, X_WG=None)
+        plan = plan_catch(self.scenario, self.obj, self.ik, watched)
+        features = network_features(self.obj, plan.catch_point)
+
+        def catch(**parameters):
+            return run_episode(self.scenario, self.obj, ik=self.ik,
+                               X_WG=plan.X_WG, throw_number=2, **parameters)
+        hits = THROWS.hits
+        reused = catch(mlp_features=features, model=model)
+        self.assertEqual(THROWS.hits - hits, 1)
+        THROWS.enabled = False
+        fresh = catch(mlp_features=features, model=model)
+        cell = cell_parameters(nearest_cell(*predict(model, features)[1]))
+        given = catch(catch_parameters=cell)
+        self.assertEqual((reused.h_catch, reused.h_down), cell)
+        for other in (fresh, given):
+            self.assertEqual((reused.outcome, reused.sim_time_s,
+                              reused.p_WO_final),
+                             (other.outcome, other.sim_time_s,
+                              other.p_WO_final))
+            for field in dc.fields(Logs):
+                np.testing.assert_array_equal(
+                    getattr(reused.logs, field.name),
+                    getattr(other.logs, field.name), err_msg=field.name)
+
 
 if __name__ == "__main__":
     unittest.main()

@@ -31,6 +31,7 @@ from regrasp_drake.station.catch_controller import (
     add_catch_controller,
 )
 from regrasp_drake.station.catch_state_machine import ThrowPerturbation
+from regrasp_drake.station.mlp_system import CatchMlp, MlpSystem
 from regrasp_drake.station.scenario import Scenario, hands_over
 from regrasp_drake.station.start_pose import start_poses_on
 from regrasp_drake.station.station import Station, add_station
@@ -67,20 +68,23 @@ class EpisodeDiagram:
 
 
 def fixed_catch_parameters(scenario: Scenario, X_WG: RigidTransform | None,
-                           catch_parameters=None):
+                           catch_parameters=None, mlp_features=None):
     """The (h_catch, h_down) an episode's diagram holds fixed, [m]: those
-    given; else, on a watching throw or when the scenario's
-    catch.parameter_source is "fixed", the scenario's catch.h_catch_m and
-    h_down_m; else None (the MLP system predicts them)."""
+    given; else, on a watching throw, or without `mlp_features` when the
+    scenario's catch.parameter_source is "fixed", the scenario's
+    catch.h_catch_m and h_down_m; else None (the MLP system predicts
+    them from `mlp_features`)."""
     if catch_parameters is None and (
-            X_WG is None or scenario.catch.parameter_source == "fixed"):
+            X_WG is None or (mlp_features is None and
+                             scenario.catch.parameter_source == "fixed")):
         return (scenario.catch.h_catch_m, scenario.catch.h_down_m)
     return catch_parameters
 
 
 def build_episode_diagram(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
                           X_WG: RigidTransform | None, catch_parameters=None,
-                          mlp_features=None, meshcat: Meshcat | None = None,
+                          mlp_features=None, model: CatchMlp | None = None,
+                          meshcat: Meshcat | None = None,
                           perturbation: ThrowPerturbation = ThrowPerturbation()
                           ) -> EpisodeDiagram:
     """One episode's diagram: the station, the catch controller wired to
@@ -88,13 +92,16 @@ def build_episode_diagram(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
     object's poses before the throw.
 
     X_WG: the palm's grasp pose; None makes a watching throw (no catch).
-    catch_parameters: (h_catch, h_down) in m, or None to take them as the
-    scenario's `catch.parameter_source` says: its fixed values, or the MLP
-    system fed with `mlp_features` (v_catch, h_cm, r_cm, d_obj, v_conv).
+    catch_parameters: (h_catch, h_down) in m, or None: the MLP system's
+    grid cell for `mlp_features` (v_catch, h_cm, r_cm, d_obj, v_conv), with
+    the network `model` (None: the scenario's catch.weights); without
+    features, the scenario's fixed values unless its
+    `catch.parameter_source` is "mlp" (fixed_catch_parameters).
     perturbation: this throw's release noise (ThrowPerturbation.draw from
     the scenario's throw.noise and the throw's number; default none).
     """
-    catch_parameters = fixed_catch_parameters(scenario, X_WG, catch_parameters)
+    catch_parameters = fixed_catch_parameters(scenario, X_WG, catch_parameters,
+                                              mlp_features)
     builder = DiagramBuilder()
     # The station: plant, sensors, finger servos, arm controller.
     station = add_station(builder, scenario, obj)
@@ -108,7 +115,7 @@ def build_episode_diagram(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
     controller = add_catch_controller(
         builder, station, scenario, obj, ik=ik, X_WG=X_WG,
         catch_parameters=catch_parameters, mlp_features=mlp_features,
-        perturbation=perturbation)
+        model=model, perturbation=perturbation)
     # Where the episode starts: the object lying in the open palm.
     X_WP_initial, X_WO_initial = start_poses_on(
         station.plant, station.arm, station.hand, obj, scenario)
@@ -120,10 +127,39 @@ def build_episode_diagram(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
         MeshcatVisualizer.AddToBuilder(
             builder, station.GetOutputPort("query_object"), meshcat,
             MeshcatVisualizerParams(publish_period=1 / 60))
-    return EpisodeDiagram(diagram=builder.Build(), station=station,
+    # The episode's own ports, then the diagram, named.
+    export_episode_ports(builder, station, controller)
+    diagram = builder.Build()
+    diagram.set_name("episode")
+    return EpisodeDiagram(diagram=diagram, station=station,
                           controller=controller, loggers=loggers,
                           meshcat=meshcat, X_WP_initial=X_WP_initial,
                           X_WO_initial=X_WO_initial)
+
+
+# The episode diagram's output ports: the station's of its own name, and
+# the catch controller's.
+EPISODE_STATION_OUTPUTS = ("object_state", "arm_state", "hand_state",
+                           "ir_levels", "bumper", "contact_results",
+                           "query_object")
+
+
+def export_episode_ports(builder: DiagramBuilder, station: Station,
+                         controller: CatchController) -> None:
+    """Exports the episode's output ports from `builder`:
+    EPISODE_STATION_OUTPUTS (the station's), `phase` (the catch state
+    machine's, catch_state_machine.Phase), `catch_parameters` (h_catch,
+    h_down, [m], from the parameters' source) and `monitor_state` (the
+    grasp monitor's, GraspMonitor). It has no input port: what an episode
+    is to do is set in its context (CatchController.set_task)."""
+    for name in EPISODE_STATION_OUTPUTS:
+        builder.ExportOutput(station.GetOutputPort(name), name)
+    builder.ExportOutput(controller.state_machine.GetOutputPort("phase"),
+                         "phase")
+    builder.ExportOutput(controller.parameters.get_output_port(),
+                         "catch_parameters")
+    builder.ExportOutput(
+        controller.monitor.GetOutputPort("monitor_state"), "monitor_state")
 
 
 def add_loggers(builder: DiagramBuilder, station: Station,
@@ -228,6 +264,17 @@ def advance_to_outcome(simulator, episode: EpisodeDiagram, scenario,
     return ""
 
 
+def leaf_systems(diagram: Diagram):
+    """The systems of `diagram` and of the diagrams nested in it (the
+    station's, the arm controller's), depth first, in their diagrams'
+    order: the systems that hold state."""
+    for system in diagram.GetSystems():
+        if isinstance(system, Diagram):
+            yield from leaf_systems(system)
+        else:
+            yield system
+
+
 def continue_with(simulator: Simulator, episode: EpisodeDiagram,
                   other: EpisodeDiagram, scenario: Scenario) -> Simulator:
     """A simulator of `other`, an episode diagram built like `episode` but
@@ -241,8 +288,21 @@ def continue_with(simulator: Simulator, episode: EpisodeDiagram,
     ApplySimulatorConfig(scenario.simulator_config, target)
     context = target.get_mutable_context()
     context.SetTime(source.get_time())
-    for a, b in zip(episode.diagram.GetSystems(), other.diagram.GetSystems(),
-                    strict=True):
+    # The catch parameters' sources are paired apart: a catch whose MLP
+    # predicts them may go on from a throw that held them fixed (a kept
+    # throw, ThrowCache); its MLP then predicts them here.
+    sources = [c.parameter_systems() for c in (episode.controller,
+                                               other.controller)]
+    pairs = list(zip(*[[s for s in leaf_systems(e.diagram)
+                        if not any(s is p for p in kept)]
+                       for e, kept in zip((episode, other), sources)],
+                     strict=True))
+    predict = None
+    if [type(s) for s in sources[0]] == [type(s) for s in sources[1]]:
+        pairs += zip(*sources)
+    else:
+        predict = other.controller.parameters
+    for a, b in pairs:
         if type(a) is not type(b):
             raise ValueError(f"continue_with: {a.get_name()} and "
                              f"{b.get_name()}: not diagrams built alike")
@@ -278,6 +338,9 @@ def continue_with(simulator: Simulator, episode: EpisodeDiagram,
     # step).
     machine = other.controller.state_machine
     machine.continue_at(machine.GetMyMutableContextFromRoot(context))
+    if isinstance(predict, MlpSystem):
+        predict.ExecuteInitializationEvents(
+            predict.GetMyMutableContextFromRoot(context))
     # The state is already the one to go on from: no initialization events.
     target.Initialize(InitializeParams(suppress_initialization_events=True))
     return target

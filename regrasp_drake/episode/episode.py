@@ -182,9 +182,12 @@ class ThrowCache:
     context). Kept for the last `size` throws, in
     the process's cache THROWS (listed in memo.caches()) unless the caller
     passes its own; only for scenarios handed over at the release time
-    (catch_time_step_s), fixed catch parameters and no Meshcat (which
-    must record the throw). A throw with release noise is its own (its
-    perturbation is part of the key). `enabled = False` turns it off."""
+    (catch_time_step_s) and no Meshcat (which must record the throw). A
+    catch whose parameters the MLP system predicts goes on in a diagram
+    built for it (its network and features), where the MLP predicts them
+    at the release time (diagram.continue_with). A throw with release
+    noise is its own (its perturbation is part of the key). `enabled =
+    False` turns it off."""
 
     def __init__(self, size: int = 2):
         self.size = size
@@ -203,7 +206,6 @@ class ThrowCache:
         """The key of the throw of `obj` perturbed by `perturbation`, or None
         when it cannot be reused (see above)."""
         if (not self.enabled or meshcat is not None
-                or catch_parameters is None
                 or not hands_over(scenario)):
             return None
         return (scenario_digest(scenario),
@@ -217,7 +219,11 @@ class ThrowCache:
             return
         self._kept.pop(key, None)
         self._kept[key] = (*handover.before, handover.scenario)
-        self._diagrams[key] = (ik, handover.diagram)
+        # The diagram goes on with fixed parameters (set_task), not an MLP's.
+        if handover.diagram.controller.features is None:
+            self._diagrams[key] = (ik, handover.diagram)
+        else:
+            self._diagrams.pop(key, None)
         while len(self._kept) > self.size:
             del self._kept[next(iter(self._kept))]
         self._diagrams = {k: v for k, v in self._diagrams.items()
@@ -235,18 +241,26 @@ class ThrowCache:
             return None
         simulator, episode, later = self._kept[key]
         built = self._diagrams.get(key)
-        if built is None or built[0] is not ik:
-            built = self._diagrams[key] = (ik, rebuild(later))
-        other = built[1]
+        if catch_parameters is None:  # the MLP's: a diagram of its own
+            other = rebuild(later)
+        else:
+            if built is None or built[0] is not ik:
+                built = self._diagrams[key] = (ik, rebuild(later))
+            other = built[1]
         target = continue_with(simulator, episode, other, later)
-        # continue_with copied the kept throw's task.
+        # continue_with copied the kept throw's task (but for the MLP's
+        # parameters).
+        context = target.get_mutable_context()
         other.controller.set_task(
-            target.get_mutable_context(),
-            X_WG=X_WG if X_WG is not None else RigidTransform(),
+            context, X_WG=X_WG if X_WG is not None else RigidTransform(),
             catch_parameters=catch_parameters, watching=X_WG is None)
         self.hits += 1
+        parameters = other.controller.parameters
         return Handover(target, other, later, before=(simulator, episode),
-                        parameters=tuple(float(p) for p in catch_parameters))
+                        parameters=tuple(float(p) for p in
+                                         parameters.get_output_port().Eval(
+                                             parameters.GetMyContextFromRoot(
+                                                 context))))
 
     def landing_diagram(self, episode: "Episode", later: Scenario
                         ) -> EpisodeDiagram:
@@ -284,8 +298,9 @@ class Episode:
     catch, held between the stages of its run (see the module's docstring).
 
     X_WG: the palm's grasp pose; catch_parameters: (h_catch, h_down), [m],
-    or None for the scenario's catch.parameter_source (fixed values, or the
-    MLP system fed with `mlp_features`); meshcat records the episode from
+    or None: the grid cell of the MLP system in the diagram, fed with
+    `mlp_features`, with the network `model` (None: the scenario's
+    catch.weights; build_episode_diagram); meshcat records the episode from
     its start; throw_number: which throw of a run this is: with it the
     scenario's throw.noise draws this throw's release noise, once
     (`perturbation`); throws: the cache of throws simulated to their release
@@ -294,19 +309,19 @@ class Episode:
 
     def __init__(self, scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
                  X_WG: RigidTransform | None, catch_parameters=None,
-                 mlp_features=None, meshcat=None, throw_number: int = 1,
-                 throws: ThrowCache | None = None):
+                 mlp_features=None, model=None, meshcat=None,
+                 throw_number: int = 1, throws: ThrowCache | None = None):
         self._t0 = time.perf_counter()
         self.obj, self.ik = obj, ik
-        self.X_WG, self.mlp_features = X_WG, mlp_features
+        self.X_WG, self.mlp_features, self.model = X_WG, mlp_features, model
         self.meshcat = meshcat
         # This throw's release noise, for the kept throw's key and the
         # state machine.
         self.perturbation = ThrowPerturbation.draw(scenario.throw.noise,
                                                    throw_number)
         self.throws = THROWS if throws is None else throws
-        self.catch_parameters = fixed_catch_parameters(scenario, X_WG,
-                                                       catch_parameters)
+        self.catch_parameters = fixed_catch_parameters(
+            scenario, X_WG, catch_parameters, mlp_features)
         # The throw's scenario; the catch's (at its plant step) once handed
         # over at the release time.
         self.scenario = scenario
@@ -328,8 +343,8 @@ class Episode:
         return build_episode_diagram(
             scenario, self.obj, ik=self.ik, X_WG=self.X_WG,
             catch_parameters=self.catch_parameters,
-            mlp_features=self.mlp_features, meshcat=self.meshcat,
-            perturbation=self.perturbation)
+            mlp_features=self.mlp_features, model=self.model,
+            meshcat=self.meshcat, perturbation=self.perturbation)
 
     def start(self) -> None:
         """Stage 1: the episode to its release time: its throw kept in
@@ -502,7 +517,7 @@ class Episode:
 
 def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
                 X_WG: RigidTransform | None, catch_parameters=None,
-                mlp_features=None, meshcat=None,
+                mlp_features=None, model=None, meshcat=None,
                 throw_number: int = 1, at_release=None,
                 throws: ThrowCache | None = None) -> EpisodeResult:
     """Throws `obj` and, unless X_WG is None (a watching throw), catches it:
@@ -512,12 +527,12 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
     release time (before the state machine reads the grasp pose), with the
     object's state then (13: quaternion wxyz, p_WO, w_WO, v_WO) and the
     time; it returns the grasp pose X_WG and the catch parameters (h_catch,
-    h_down) that replace the ones given, None (the ones given stay: nothing
+    h_down) that replace the ones given (None: they stay), None (nothing
     in the episode changes), or raises InputError (no catch planned: the
-    episode ends there and the error propagates). Requires catch_parameters
-    and an X_WG (any: it is replaced)."""
+    episode ends there and the error propagates). Requires an X_WG (any:
+    it is replaced), and catch_parameters to replace them."""
     return Episode(scenario, obj, ik=ik, X_WG=X_WG,
                    catch_parameters=catch_parameters,
-                   mlp_features=mlp_features, meshcat=meshcat,
+                   mlp_features=mlp_features, model=model, meshcat=meshcat,
                    throw_number=throw_number, throws=throws
                    ).run(at_release)

@@ -299,6 +299,7 @@ class _Phase:
         self.first_plan: CatchPlan | None = None
         self.search: Search | None = None
         self.features = self.raw = self.prediction = None
+        self.network_cell = None  # the network's cell for the plan
         self.attempts: list[Attempt] = []
         self.predicted = False  # the plan is the predicted flight's
         self.replanned: dict | None = None
@@ -375,8 +376,8 @@ class _Phase:
             plan = shifted_along_axis(plan, self.palm_shift_m, self.ik) or plan
         self.plan = plan
         self.raw, self.prediction = predict(self.model, self.features)
-        first = self.planner.first_cell(self.obj, plan,
-                                        nearest_cell(*self.prediction))
+        self.network_cell = nearest_cell(*self.prediction)
+        first = self.planner.first_cell(self.obj, plan, self.network_cell)
         start, reach = feasible_start(first, self.ik, plan)
         self.report(f"catch point at t = {plan.catch_point.t_s:.3f} s, "
                     f"v_catch {plan.catch_point.v_catch:.3f} m/s; network: "
@@ -412,10 +413,24 @@ class _Phase:
 
         correction = ReleaseCorrection()
         if not self.at_release:  # a watched or predicted plan
+            cell = self.search.next_cell
+            # The search's first cell, when it is the network's: the MLP
+            # system in the episode's diagram predicts it, with this phase's
+            # network; the later cells are given.
+            from_network = cell == self.search.start == self.network_cell
             result = catch_planned(
                 self.scenario, self.obj, self.ik, self.plan,
-                cell_parameters(self.search.next_cell), meshcat=self.meshcat,
-                throw_number=self.throws + 1, record=correction)
+                None if from_network else cell_parameters(cell),
+                network=self.model if from_network else None,
+                features=self.features if from_network else None,
+                meshcat=self.meshcat, throw_number=self.throws + 1,
+                record=correction)
+            if (result.h_catch is not None and
+                    (result.h_catch, result.h_down) != cell_parameters(cell)):
+                raise RuntimeError(
+                    f"the episode ran with (h_catch, h_down) = "
+                    f"({result.h_catch}, {result.h_down}), expected cell "
+                    f"{cell}'s {cell_parameters(cell)}")
             return self.attempted(result, correction)
         cell = None if self.search is None else self.search.next_cell
         try:

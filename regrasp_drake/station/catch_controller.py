@@ -20,7 +20,7 @@ from regrasp_drake.station.catch_state_machine import (
     ThrowPerturbation,
 )
 from regrasp_drake.station.grasp_monitor import GraspMonitor
-from regrasp_drake.station.mlp_system import MlpSystem, load_weights
+from regrasp_drake.station.mlp_system import CatchMlp, MlpSystem, load_weights
 from regrasp_drake.station.scenario import Scenario
 from regrasp_drake.station.station import Station
 from regrasp_drake.world import robot
@@ -53,8 +53,15 @@ class CatchController:
     monitor: GraspMonitor
     grasp_pose: GraspPoseSource
     # The catch parameters' source: fixed (its value settable in a context),
-    # or the MLP system.
+    # or the MLP system (the network's grid cell).
     parameters: ConstantVectorSource | MlpSystem
+    # The MLP's features (v_catch, h_cm, r_cm, d_obj, v_conv); None when
+    # fixed.
+    features: ConstantVectorSource | None = None
+
+    def parameter_systems(self) -> list:
+        """The systems of the catch parameters' source."""
+        return [s for s in (self.parameters, self.features) if s is not None]
 
     def set_task(self, root_context, *, X_WG: RigidTransform | None = None,
                  catch_parameters=None, watching: bool | None = None) -> None:
@@ -89,7 +96,7 @@ class CatchController:
 def add_catch_controller(builder: DiagramBuilder, station: Station,
                          scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
                          X_WG: RigidTransform | None, catch_parameters=None,
-                         mlp_features=None,
+                         mlp_features=None, model: CatchMlp | None = None,
                          perturbation: ThrowPerturbation = ThrowPerturbation()
                          ) -> CatchController:
     """Adds the catch controller to `builder` and wires it to `station`
@@ -100,13 +107,17 @@ def add_catch_controller(builder: DiagramBuilder, station: Station,
     # The palm's grasp pose, settable in a running context.
     grasp = builder.AddNamedSystem("X_WG", GraspPoseSource(
         X_WG if X_WG is not None else RigidTransform()))
-    # The catch parameters: fixed, or predicted by the MLP.
+    # The catch parameters: fixed, or the grid cell the MLP predicts (with
+    # the caller's network; by default the scenario's catch.weights).
+    features = None
     if catch_parameters is not None:
         params = builder.AddNamedSystem(
             "catch_parameters", ConstantVectorSource(list(catch_parameters)))
     else:
-        model, _ = load_weights(MODELS_DIR / scenario.catch.weights)
-        params = builder.AddNamedSystem("mlp", MlpSystem(model))
+        if model is None:
+            model, _ = load_weights(MODELS_DIR / scenario.catch.weights)
+        params = builder.AddNamedSystem("mlp",
+                                        MlpSystem(model, grid_cells=True))
         features = builder.AddNamedSystem(
             "features", ConstantVectorSource(list(mlp_features)))
         builder.Connect(features.get_output_port(), params.get_input_port())
@@ -148,4 +159,5 @@ def add_catch_controller(builder: DiagramBuilder, station: Station,
                     monitor.GetInputPort("hand_desired_state"))
     builder.Connect(machine.GetOutputPort("phase"), monitor.GetInputPort("phase"))
     return CatchController(state_machine=machine, monitor=monitor,
-                           grasp_pose=grasp, parameters=params)
+                           grasp_pose=grasp, parameters=params,
+                           features=features)

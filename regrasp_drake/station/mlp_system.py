@@ -27,6 +27,7 @@ from pydrake.systems.framework import LeafSystem
 from regrasp_drake import atomic_io
 from regrasp_drake.errors import InputError, field_error
 from regrasp_drake.input_files import read_bytes
+from regrasp_drake.parameter_space import cell_parameters, nearest_cell
 
 # The network's inputs, in order (paper §V): the object's vertical velocity at
 # the catch point (m/s), the height h_cm and radius r_cm (m) of its centre of
@@ -185,18 +186,23 @@ class MlpSystem(LeafSystem):
 
     Input port `features`: (v_catch, h_cm, r_cm, d_obj, v_conv).
     Output port `catch_parameters`: (h_catch, h_down) in m, clamped to the
-    parameter space. The features are constant during an episode, so the
-    network runs only in an initialization event (Simulator.Initialize) and its
-    result is held as discrete state; before initialization the output is NaN.
+    parameter space; with `grid_cells`, the values of the grid cell nearest
+    them (parameter_space.nearest_cell), the cell the learning phase's
+    search starts from. The features are constant during an episode, so
+    the network runs only in an initialization event (Simulator.Initialize)
+    and its result is held as discrete state; before initialization the
+    output is NaN.
     """
 
     def __init__(
-        self, model: CatchMlp, parameter_space: ParameterSpace = ParameterSpace()
+        self, model: CatchMlp, parameter_space: ParameterSpace = ParameterSpace(),
+        grid_cells: bool = False,
     ):
         LeafSystem.__init__(self)
         # A private float64 copy in eval mode: the caller may go on training.
         self._model = copy.deepcopy(model).to(torch.float64).eval()
         self._space = parameter_space
+        self._grid_cells = grid_cells
         self._features_port = self.DeclareVectorInputPort(
             "features", len(FEATURE_NAMES)
         )
@@ -205,11 +211,15 @@ class MlpSystem(LeafSystem):
         self.DeclareStateOutputPort("catch_parameters", state)
 
     def parameters_for(self, features) -> tuple[float, float]:
-        """Returns the clamped (h_catch, h_down) (m) for one feature vector."""
+        """Returns the clamped (h_catch, h_down) (m) for one feature vector
+        (with grid_cells, its nearest cell's)."""
         with torch.no_grad():
             x = torch.as_tensor(np.asarray(features, dtype=np.float64))
             h_catch, h_down = self._model(x).tolist()
-        return self._space.clamp(h_catch, h_down)
+        clamped = self._space.clamp(h_catch, h_down)
+        if self._grid_cells:
+            return cell_parameters(nearest_cell(*clamped))
+        return clamped
 
     def _initialize(self, context, discrete_state):
         discrete_state.set_value(

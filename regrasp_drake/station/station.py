@@ -1,12 +1,20 @@
-"""The throw-and-catch station, with named ports as Drake's hardware
-stations have (`add_station`): PUMA 560 + hand + object in a MultibodyPlant
-with point contact; the infrared sensors and the tactile bumper; PD servos
-for the fingers (in the plant when it is discrete; on a continuous plant,
-which Drake's in-plant PD does not support, the same PD outside it, see
-add_finger_servos); an inverse-dynamics controller for the arm on its own
-arm-only plant. The hardware only: the catch controller wired to it is
+"""The throw-and-catch station, a Drake Diagram with named, exported ports
+as manipulation's hardware stations are (`MakeStation`): PUMA 560 + hand +
+object in a MultibodyPlant with point contact; the infrared sensors and the
+tactile bumper; PD servos for the fingers (in the plant when it is
+discrete; on a continuous plant, which Drake's in-plant PD does not
+support, the same PD outside it, see add_finger_servos); an
+inverse-dynamics controller for the arm on its own arm-only plant. The
+hardware only: the catch controller wired to it is
 station/catch_controller.py's; one episode's diagram, which wires the two
 with the loggers and Meshcat, and its simulator are episode/diagram.py's.
+
+A Drake user nests it in a diagram of their own and wires its ports:
+
+    builder = DiagramBuilder()
+    station = builder.AddSystem(MakeStation(scenario, obj))
+    builder.Connect(my_controller.get_output_port(),
+                    station.GetInputPort("arm_desired_state"))
 """
 
 import dataclasses as dc
@@ -44,16 +52,36 @@ from regrasp_drake.station.plant import add_world, bumper_geometry
 from regrasp_drake.station.scenario import Scenario
 from regrasp_drake.station.sensors import InfraredSensors, TactileBumper
 from regrasp_drake.world import robot
-from regrasp_drake.world.object_model import ObjectSpec
+from regrasp_drake.world.object_model import OBJECT_MODEL_NAME, ObjectSpec
 
 _IR_FRAMES = [f"ir{i}" for i in range(1, 14)]
 
 
+# The station's ports: (name, what flows through it).
+STATION_INPUTS = {
+    "arm_desired_state": "the arm's desired q, v (12)",
+    "arm_desired_acceleration": "the arm's desired v̇ (6)",
+    "hand_desired_state": "the finger joints' desired q, v (20)",
+}
+STATION_OUTPUTS = {
+    "arm_state": "the arm's q, v (12)",
+    "hand_state": "the hand's q, v (20)",
+    "object_state": "quaternion wxyz, p_WO, w_WO, v_WO (13)",
+    "body_poses": "every body's X_WB",
+    "contact_results": "the plant's ContactResults",
+    "net_actuation": "the plant's net actuation (16), [N·m]",
+    "query_object": "SceneGraph's QueryObject",
+    "ir_levels": "the 13 infrared levels",
+    "bumper": "the tactile bumper (1)",
+}
+
+
 @dc.dataclass
 class Station:
-    """The station's systems in an episode's diagram and its ports by name
-    (see `add_station`), read as a hardware station Diagram's exported
-    ports are: `GetInputPort(name)`, `GetOutputPort(name)`."""
+    """The station in a diagram: the Diagram `MakeStation` builds (or, for
+    a continuous plant, its systems added flat, see `add_station`), its
+    systems, and its ports by name (`GetInputPort(name)`,
+    `GetOutputPort(name)`, as a Diagram's exported ports are read)."""
     plant: MultibodyPlant
     scene_graph: SceneGraph
     arm: ModelInstanceIndex
@@ -63,6 +91,24 @@ class Station:
     bumper: TactileBumper
     inputs: dict[str, InputPort]
     outputs: dict[str, OutputPort]
+    # The station's own Diagram; None when added flat (a continuous plant).
+    diagram: Diagram | None = None
+
+    @classmethod
+    def of(cls, diagram: Diagram) -> "Station":
+        """The systems and ports of a Diagram that `MakeStation` built."""
+        plant = diagram.GetSubsystemByName("plant")
+        body = plant.get_body(plant.GetBodyIndices(
+            plant.GetModelInstanceByName(OBJECT_MODEL_NAME))[0])
+        return cls(
+            plant=plant, scene_graph=diagram.GetSubsystemByName("scene_graph"),
+            arm=plant.GetModelInstanceByName(robot.ARM_MODEL_NAME),
+            hand=plant.GetModelInstanceByName(robot.HAND_MODEL_NAME),
+            object_body=body, infrared=diagram.GetSubsystemByName("infrared"),
+            bumper=diagram.GetSubsystemByName("bumper"),
+            inputs={n: diagram.GetInputPort(n) for n in STATION_INPUTS},
+            outputs={n: diagram.GetOutputPort(n) for n in STATION_OUTPUTS},
+            diagram=diagram)
 
     def GetInputPort(self, name: str) -> InputPort:
         return _port(self.inputs, name, "input")
@@ -83,14 +129,15 @@ def _port(ports: dict, name: str, kind: str):
     return ports[name]
 
 
-def add_station(builder: DiagramBuilder, scenario: Scenario,
-                obj: ObjectSpec) -> Station:
-    """Adds the station to `builder`: the plant (PUMA + hand + `obj`) and
-    its scene graph, the 13 infrared sensors and the tactile bumper, the
-    fingers' PD servos (in the plant when it is discrete, beside it when
-    continuous) and the arm's inverse-dynamics controller (on an arm-only
-    plant built from the scenario's directives). Whatever drives it (the catch
-    controller, or another) is wired to the returned Station's named ports:
+def MakeStation(scenario: Scenario, obj: ObjectSpec,
+                name: str = "station") -> Diagram:
+    """The station as a Diagram named `name`: the plant (PUMA + hand +
+    `obj`) and its scene graph, the 13 infrared sensors and the tactile
+    bumper, the fingers' PD servos (in the plant when it is discrete, beside
+    it when continuous) and the arm's inverse-dynamics controller (on an
+    arm-only plant built from the scenario's directives). Whatever drives it
+    (the catch controller, or another) is wired to its exported ports
+    (STATION_INPUTS, STATION_OUTPUTS):
 
     Input ports: `arm_desired_state` (q, v: 12), `arm_desired_acceleration`
     (6), `hand_desired_state` (the finger joints' q, v: 20).
@@ -99,10 +146,35 @@ def add_station(builder: DiagramBuilder, scenario: Scenario,
     `query_object`, `ir_levels` (13), `bumper` (1), `net_actuation` (16,
     [N·m]).
 
-    The station's systems go into the episode's own builder, not into a
-    Diagram of their own as manipulation's MakeHardwareStation does: Drake's
-    CENIC integrator (a continuous plant) needs the MultibodyPlant as a
-    direct child, named "plant", of the diagram it simulates."""
+    Its systems inside are named "plant", "scene_graph", "infrared",
+    "bumper" and "arm_controller" (`Station.of` finds them)."""
+    builder = DiagramBuilder()
+    parts = _add_station_systems(builder, scenario, obj)
+    for port_name, port in parts.inputs.items():
+        builder.ExportInput(port, port_name)
+    for port_name, port in parts.outputs.items():
+        builder.ExportOutput(port, port_name)
+    diagram = builder.Build()
+    diagram.set_name(name)
+    return diagram
+
+
+def add_station(builder: DiagramBuilder, scenario: Scenario,
+                obj: ObjectSpec, name: str = "station") -> Station:
+    """Adds the station to `builder` (`MakeStation`'s Diagram, named
+    `name`) and returns its systems and ports."""
+    if scenario.plant_config.time_step > 0:
+        return Station.of(builder.AddSystem(MakeStation(scenario, obj, name)))
+    # Flat, its systems straight into `builder`, only for a continuous
+    # plant: Drake's CENIC integrator needs the MultibodyPlant as a direct
+    # child, named "plant", of the diagram it simulates.
+    return _add_station_systems(builder, scenario, obj)
+
+
+def _add_station_systems(builder: DiagramBuilder, scenario: Scenario,
+                         obj: ObjectSpec) -> Station:
+    """Adds the station's systems to `builder` (see `MakeStation`); the
+    Station's ports are theirs."""
     # The physics: PUMA + hand, the object, the ground (see add_world).
     plant, scene_graph, instances, object_body, object_geometries = (
         add_world(builder, scenario, obj))

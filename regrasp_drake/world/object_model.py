@@ -305,11 +305,15 @@ def _shift_from_center(I_cc: np.ndarray, mass: float, p_Oc: np.ndarray) -> np.nd
     return I_cc + mass * (p_Oc @ p_Oc * np.eye(3) - np.outer(p_Oc, p_Oc))
 
 
+# The model instance an episode's object is added as.
+OBJECT_MODEL_NAME = "object"
+
+
 def add_object(
     plant: MultibodyPlant,
     spec: ObjectSpec,
     friction: CoulombFriction,
-    model_name: str = "object",
+    model_name: str = OBJECT_MODEL_NAME,
     rounded_boxes: bool = False,
 ) -> RigidBody:
     """Adds `spec` to `plant` (before Finalize) as a new model instance
