@@ -11,7 +11,7 @@ import torch
 from pydrake.math import RigidTransform
 
 from regrasp_drake import memo
-from regrasp_drake.episode import episode
+from regrasp_drake.episode import episode, static_hold  # noqa: F401
 from regrasp_drake.episode.episode import THROWS, ThrowCache, run_episode
 from regrasp_drake.episode.result import Logs
 from regrasp_drake.learning.learning_phase import network_features, predict
@@ -21,6 +21,7 @@ from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.catch_state_machine import ThrowPerturbation
 from regrasp_drake.station.mlp_system import load_weights
 from regrasp_drake.station.scenario import ThrowNoise, load_scenario
+from regrasp_drake.station.start_pose import start_poses
 from regrasp_drake.throw_catch import plan_catch
 from regrasp_drake.world.objects import resolve_object
 
@@ -95,7 +96,10 @@ class ThrowCacheTest(unittest.TestCase):
                          {"start poses", "rest poses", "throws",
                           "forward tilts", "sideways tables",
                           "toss trajectories", "arm joint limits",
-                          "scenario digests"})
+                          "scenario digests", "static holds"})
+        # (The episodes above place the object in their own plant: the
+        # memo of start poses in a world of their own is filled here.)
+        start_poses(self.scenario, self.obj)
         self.assertGreater(len(memo.caches()["start poses"]), 0)
         mine.clear()
         memo.clear_all()

@@ -2,7 +2,8 @@
 static test a target must pass before a throw aims for it.
 
 The object is laid in the target grasp (the start grasp turned as the
-target asks, slid to its offset along the object's axis) on the open hand
+target asks, slid to its offset along the object's axis, and across the
+palm where the catch puts it) on the open hand
 at the throw's start pose (the palm level, facing up), let come to rest
 there (start_pose.rest_pose), and the fingers close on it from open to
 closed at the catch's finger speed, the arm's joints held; `hold_s` after
@@ -106,12 +107,14 @@ def check_holdable(scenario: Scenario, obj: ObjectSpec) -> None:
 def target_pose(scenario: Scenario, obj: ObjectSpec, target: grasp.Target
                 ) -> tuple[RigidTransform, RigidTransform, grasp.Grasp]:
     """(X_WP, X_WO, start grasp): the palm at the throw's start pose and
-    the object in `target`'s grasp there, its lowest point 1 mm above the
-    bumper (not yet at rest)."""
+    the object in `target`'s grasp there, where the catch's palm pose puts
+    it (catch.palm_toward_fingers_m toward the fingertips), its lowest
+    point 1 mm above the bumper (not yet at rest)."""
     X_WP, X_WO_start = start_poses(scenario, obj)
     start = palm_grasp(obj, X_WP, X_WO_start)
     R_PO = grasp.target_orientation(target, start)
-    p_PO = (X_WP.inverse() @ X_WO_start).translation()
+    p_PO = (X_WP.inverse() @ X_WO_start).translation().copy()
+    p_PO[0] += scenario.catch.palm_toward_fingers_m
     # Slid along the object's axis (R_PO's y): the offset, the palm
     # centre's place on the axis, moves the other way.
     laid = grasp.measure(obj, R_PO, p_PO, np.asarray(start.R_PO))
