@@ -23,6 +23,10 @@ planning/grasp.py) and the round ones:
     geometry (learning/planner.py `judge`: each held-out map's learned,
     paper network and best constant cell, and the ceiling, any cell), at
     both steps.
+With --designs, the maps are made again under each scenario override
+instead (resumable, in out/planner_convergence/<target>_<digest>/), and
+each design compared with the next as a coarser step with a finer one;
+the report's steps_ms are then the designs' positions.
 And per map: each chooser's cell (the ceiling's: the 1 ms map's most
 robust cell, learning/labels.py) and whether it is in the target grasp at
 each step. Prints a table and writes the JSON.
@@ -47,7 +51,12 @@ from regrasp_drake.learning.planner import CHOOSERS, PlannerData, judge
 from regrasp_drake.learning.provenance import load_provenance
 from regrasp_drake.paths import MODELS_DIR, REPO_DIR
 from regrasp_drake.planning.grasp import has_side
-from regrasp_drake.station.scenario import load_scenario, with_catch_time_step
+from regrasp_drake.station.scenario import (
+    load_scenario,
+    merged_text,
+    scenario_digest,
+    with_catch_time_step,
+)
 from regrasp_drake.world.objects import resolve_object
 
 # At most this many maps the best constant cell fails, and as many it holds.
@@ -106,6 +115,13 @@ def main(argv=None) -> int:
     parser.add_argument("--objects", nargs="+", metavar="NAME")
     parser.add_argument("--steps-ms", type=float, nargs="+", default=[0.25],
                         metavar="MS", help="finer catch steps than 1 ms")
+    parser.add_argument("--designs", nargs="+", metavar="YAML",
+                        help="instead of the data set's maps against finer "
+                             "catch steps: the maps made again under each "
+                             "override of the data set's scenario (e.g. '{}' "
+                             "for today's defaults, then '{landing_time_step_s:"
+                             " 0.000125, catch_time_step_s: 0.0005}' for half "
+                             "their steps), compared in turn")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path)
     args = parser.parse_args(argv)
@@ -117,8 +133,13 @@ def main(argv=None) -> int:
         if args.workers < 1:
             raise InputError(f"--workers: got {args.workers}, expected an "
                              "integer >= 1")
-        base = load_scenario(text=load_provenance(
-            data_dir / "provenance.json")["scenario"])
+        made_with = load_provenance(data_dir / "provenance.json")["scenario"]
+        # The data set's maps were made before the landing's own step: its
+        # scenario as it was, then (below) only the catch's step changed.
+        base = load_scenario(text=merged_text(
+            made_with, "{landing_time_step_s: null}"))
+        designs = [load_scenario(text=merged_text(made_with, text))
+                   for text in args.designs or ()]
         throw_ms = 1e3 * base.plant_config.time_step
         coarse_ms = 1e3 * (base.catch_time_step_s or base.plant_config.time_step)
         for step in args.steps_ms:
@@ -138,13 +159,28 @@ def main(argv=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     torch.set_num_threads(1)
-    steps = [coarse_ms] + sorted(set(args.steps_ms), reverse=True)
-    maps = {coarse_ms: {n: data.caught[data.objects.index(n)] for n in names}}
-    for step in steps[1:]:
-        fine_dir = OUT_DIR / f"{args.target}_{step:g}ms"
-        dataset.generate(names, fine_dir, workers=args.workers,
-                         scenario=with_catch_time_step(base, step / 1e3))
-        maps[step] = {n: load_map(fine_dir, n) for n in names}
+    if designs:
+        # Each design's maps, labelled by its position (steps_ms holds
+        # the labels then; the report names the designs).
+        steps = list(range(len(designs)))
+        maps = {}
+        for i, scenario in enumerate(designs):
+            design_dir = OUT_DIR / f"{args.target}_{scenario_digest(scenario)}"
+            dataset.generate(names, design_dir, workers=args.workers,
+                             scenario=scenario)
+            maps[i] = {n: load_map(design_dir, n) for n in names}
+    else:
+        steps = [coarse_ms] + sorted(set(args.steps_ms), reverse=True)
+        maps = {coarse_ms: {n: data.caught[data.objects.index(n)]
+                            for n in names}}
+        for step in steps[1:]:
+            fine_dir = OUT_DIR / f"{args.target}_{step:g}ms"
+            dataset.generate(names, fine_dir, workers=args.workers,
+                             scenario=with_catch_time_step(base, step / 1e3))
+            maps[step] = {n: load_map(fine_dir, n) for n in names}
+    def label(step):
+        return f"design {step}" if designs else f"{step:g} ms"
+
     choices: dict = {}
     judge(data, choices=choices)
     picks = choices["by_geometry"]
@@ -152,6 +188,7 @@ def main(argv=None) -> int:
     round_ = [n for n in names if n not in lopsided]
     report = {"target": args.target, "data": str(data_dir.relative_to(
         REPO_DIR) if REPO_DIR else data_dir), "steps_ms": steps,
+        "designs": args.designs,
         "objects": names, "lopsided": lopsided, "pairs": []}
     print(f"{args.target}: {len(names)} maps ({len(lopsided)} lopsided); "
           "the choosers by geometry: learned / paper / constant / ceiling")
@@ -162,17 +199,17 @@ def main(argv=None) -> int:
             for group, group_names in (("all", names), ("lopsided", lopsided),
                                        ("round", round_))}
         report["pairs"].append(pair)
-        print(f"{coarse_step:g} ms vs {fine_step:g} ms:")
+        print(f"{label(coarse_step)} vs {label(fine_step)}:")
         for group in ("all", "lopsided", "round"):
             g = pair[group]
             if not g["maps"]:
                 continue
             rates = " | ".join(
-                f"{step:g} ms " + " / ".join(f"{g[key][c]:.3f}" for c in CHOOSERS)
+                f"{label(step)} " + " / ".join(f"{g[key][c]:.3f}" for c in CHOOSERS)
                 for key, step in (("coarse", coarse_step), ("fine", fine_step)))
             print(f"  {group:8s} {g['maps']:2d} maps: cells same "
                   f"{g['cells_same']:.3f} (chance {g['cells_same_by_chance']:.3f})"
-                  f"; in target at {coarse_step:g} ms still so "
+                  f"; in target at {label(coarse_step)} still so "
                   f"{g['in_target_still_at_finer_step']}; {rates}")
     report["per_map"] = {
         n: {"lopsided": n in lopsided,
