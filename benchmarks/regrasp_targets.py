@@ -52,7 +52,7 @@ DEFAULT_TARGETS = [f"{kind}:{offset}" for kind in ("keep", "flip")
 
 
 def run_one(scenario, obj, model, ik, mode, max_throws, predictor,
-            offset_prior, planner=None) -> dict:
+            offset_prior, planner=None, rehearse=False) -> dict:
     try:
         check_reachable(Target(scenario.regrasp.target,
                                scenario.regrasp.offset_mm), obj)
@@ -63,7 +63,7 @@ def run_one(scenario, obj, model, ik, mode, max_throws, predictor,
         result = learn(scenario, obj, model, ik=ik, max_throws=max_throws,
                        progress=None, offset_prior=offset_prior,
                        flight_predictor=predictor if mode == "first-throw"
-                       else None, planner=planner)
+                       else None, planner=planner, rehearse=rehearse)
     except (NoCatchPoint, InputError) as e:
         return {"stopped": "no_catch_point", "error": str(e),
                 "success": False, "caught": False,
@@ -79,6 +79,8 @@ def run_one(scenario, obj, model, ik, mode, max_throws, predictor,
                               "wall_s", "planner")} | {
         "start_cell": d["prediction"]["start_cell"],
         "attempts": [a["outcome"] for a in d["attempts"]],
+        "chosen_by": [a["chosen_by"] for a in d["attempts"]],
+        "rehearsal": d.get("rehearsal"),
         "predicted_grasp": predicted.as_dict()}
 
 
@@ -90,7 +92,7 @@ def _job(task) -> dict:
     shipped network, flight predictor and offset prior loaded once per
     process."""
     (scenario, target, name, mode, level, trial, max_throws,
-     use_prior, paper) = task
+     use_prior, paper, rehearse) = task
     torch.set_num_threads(1)
     if not _MODELS:
         _MODELS["model"] = load_weights(MODELS_DIR / scenario.catch.weights)[0]
@@ -102,10 +104,11 @@ def _job(task) -> dict:
     return {"object": name, "target": target.as_dict(), "mode": mode,
             "level": level, "trial": trial,
             "scenario_digest": scenario_digest(scenario),
-            "planners": "paper" if paper else "shipped"} | run_one(
+            "planners": ("paper" if paper else "shipped")
+            + ("+rehearsal" if rehearse else "")} | run_one(
         scenario, resolve_object(name=name), _MODELS["model"], _MODELS["ik"],
         mode, max_throws, _MODELS["predictor"], _MODELS["prior"],
-        PAPER_NETWORK if paper else None)
+        PAPER_NETWORK if paper else None, rehearse)
 
 
 def landing(rows: list[dict]) -> dict:
@@ -225,6 +228,11 @@ def main(argv=None) -> int:
                              "velocities k x 0.03 rad/s (default 0)")
     parser.add_argument("--trials", type=int, default=1,
                         help="noise seeds per (object, target, mode)")
+    parser.add_argument("--rehearse", action="store_true",
+                        help="first throws rehearse their catch at a lattice "
+                             "of cells before the throw and start from the "
+                             "most robust in the target grasp "
+                             "(learning/rehearsal.py)")
     parser.add_argument("--workers", type=int, default=1,
                         help="episodes run side by side in forked processes "
                              "(default 1)")
@@ -265,13 +273,14 @@ def main(argv=None) -> int:
         if key not in done:
             jobs.append((scenario, target, name, mode, args.noise_level,
                          trial, args.max_throws, args.offset_prior,
-                         args.paper_network))
+                         args.paper_network, args.rehearse))
         elif done[key]["scenario_digest"] != scenario_digest(scenario):
             raise SystemExit(f"{rows_path}: row {key} was made under "
                              "another scenario; move the file away to "
                              "start again")
         elif done[key].get("planners", "paper") != (
-                "paper" if args.paper_network else "shipped"):
+                ("paper" if args.paper_network else "shipped")
+                + ("+rehearsal" if args.rehearse else "")):
             raise SystemExit(f"{rows_path}: row {key} was made with other "
                              "planners (--paper-network); move the file "
                              "away to start again")

@@ -183,7 +183,7 @@ def learn(obj: ObjectSpec, *, scenario: Scenario | None = None,
           meshcat=None, replay: bool = True, progress=sys.stderr,
           scenario_label: str = "defaults",
           object_source: str = "catalogue", planner: str = "shipped",
-          first_throw: bool | None = None) -> Run:
+          rehearse: bool = False, first_throw: bool | None = None) -> Run:
     """`regrasp-drake learn`: the learning phase on `obj` (paper Fig. 1):
     watch, plan, the planner's cell, catch, and search the parameter space
     until a catch (learning/learning_phase.py).
@@ -210,7 +210,11 @@ def learn(obj: ObjectSpec, *, scenario: Scenario | None = None,
     library records of where the scenario and the object came from.
     planner: who picks the search's first cell, "shipped" (the target's
     planner, models/planner_<target>.json's winner; the paper's network
-    under `any`) or "paper" (the paper's network; docs/planner.md)."""
+    under `any`) or "paper" (the paper's network; docs/planner.md).
+    rehearse: with watch=False, the first catch is rehearsed in simulation
+    at a lattice of 25 cells before the throw and starts from the most
+    robust one in the target grasp (learning/rehearsal.py; about a minute
+    on two cores)."""
     if planner not in PLANNER_CHOICES:
         raise field_error("planner", planner, " or ".join(PLANNER_CHOICES))
     watch = _watch(watch, first_throw, "learn")
@@ -241,7 +245,8 @@ def learn(obj: ObjectSpec, *, scenario: Scenario | None = None,
             offset_prior=load_offset_prior(offset_prior, scenario),
             meshcat=None if recording is None else recording.meshcat,
             on_episode=on_episode, progress=progress,
-            planner=PAPER_NETWORK if planner == "paper" else None)
+            planner=PAPER_NETWORK if planner == "paper" else None,
+            rehearse=rehearse)
     # The plan of the last catching throw (a later one's, after an offset
     # correction, never ran).
     plan = result.attempts[-1].plan if result.attempts else result.plan

@@ -187,6 +187,11 @@ def _add_first_throw_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--flight-model", type=Path, metavar="F",
                    help="the flight predictor (default "
                         "models/flight_predictor.json)")
+    p.add_argument("--rehearse", action="store_true",
+                   help="with --first-throw: rehearse the first catch in "
+                        "simulation at a lattice of 25 cells before the "
+                        "throw and start from the most robust one in the "
+                        "target grasp (learning/rehearsal.py)")
     p.add_argument("--at-release", action="store_true",
                    help="no watching throw: each throw plans its catch when "
                         "it releases the object, from the object's state "
@@ -234,6 +239,10 @@ def _check_first_throw_args(args) -> None:
     if args.first_throw and args.at_release:
         raise InputError("--at-release: got it with --first-throw, expected "
                          "one of the two first-throw modes")
+    if args.rehearse and not args.first_throw:
+        raise InputError("--rehearse: got it without --first-throw, expected "
+                         "it with --first-throw (it rehearses the catch "
+                         "planned from the predicted flight)")
     least = 1 if args.first_throw or args.at_release else 2
     if args.max_throws is not None and args.max_throws < least:
         raise InputError(f"--max-throws: got {args.max_throws}, expected an "
@@ -253,7 +262,8 @@ def _cmd_learn(args) -> int:
                     flight_model=_flight_predictor(args),
                     at_release=args.at_release, search=args.search,
                     offset_prior=_offset_prior(args, scenario),
-                    planner=args.planner, replay=args.html is not None)
+                    planner=args.planner, rehearse=args.rehearse,
+                    replay=args.html is not None)
     result = run.learning
     if args.html is not None:
         run.save_replay(args.html)
@@ -414,7 +424,7 @@ def _cmd_table1(args) -> int:
                       at_release=args.at_release, search=args.search,
                       offset_prior=_offset_prior(args, scenario),
                       planner=PAPER_NETWORK if args.planner == "paper"
-                      else None)
+                      else None, rehearse=args.rehearse)
     print(format_markdown(rows))
     write_outputs(rows, args.json, args.markdown)
     return 0

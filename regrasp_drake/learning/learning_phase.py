@@ -84,6 +84,7 @@ from regrasp_drake.learning.learning_result import (
     NoCatchPoint,
 )
 from regrasp_drake.learning.planner import Planner, load_planner
+from regrasp_drake.learning.rehearsal import rehearse
 from regrasp_drake.learning.search import (
     SEARCHES,
     Search,
@@ -166,7 +167,8 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
           flight_predictor=None, at_release: bool = False,
           search: str = "wavefront", prior_maps=None,
           prior_features=None, offset_prior=None,
-          planner: Planner | None = None) -> LearningResult:
+          planner: Planner | None = None,
+          rehearse: bool = False) -> LearningResult:
     """The learning phase on one object (see the module's docstring).
 
     planner: who picks the search's first cell (learning/planner.py): None,
@@ -189,9 +191,12 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
     either way, `_Phase.correct_offset`).
 
     flight_predictor: a learning.flight_predictor.FlightPredictor for the
-    first-throw mode (no watching throw), or None. at_release: the
-    first-throw mode that plans each throw's catch at its release (no
-    flight predictor then).
+    first-throw mode (no watching throw), or None. rehearse: with it, the
+    first catch is rehearsed in simulation before the throw at a lattice of
+    cells and starts from the most robust one in the target grasp
+    (learning/rehearsal.py; a chooser of its own, `chosen_by`
+    "rehearsal"). at_release: the first-throw mode that plans each throw's
+    catch at its release (no flight predictor then).
 
     library_path: where the learned entry is stored when a throw catches
     (None: not stored). max_throws: stop after this many throws, the watch
@@ -207,7 +212,8 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
                    at_release=at_release, meshcat=meshcat,
                    on_episode=on_episode, progress=progress,
                    offset_prior=offset_prior,
-                   planner=planner or load_planner(target_of(scenario)))
+                   planner=planner or load_planner(target_of(scenario)),
+                   rehearse=rehearse and flight_predictor is not None)
     # Throw 1 watches (or the flight is predicted); the offline stage plans
     # the catch and the network's cell starts the search. At release, throw
     # 1 plans its own catch, and starts the search, when it lets go.
@@ -285,9 +291,15 @@ class _Phase:
 
     def __init__(self, scenario: Scenario, obj: ObjectSpec, model: CatchMlp,
                  ik: ArmIk, *, prior, at_release: bool, meshcat, on_episode,
-                 progress, planner: Planner, offset_prior=None):
+                 progress, planner: Planner, offset_prior=None,
+                 rehearse: bool = False):
         self.scenario, self.obj, self.model, self.ik = scenario, obj, model, ik
         self.planner = planner
+        # Whether the first catch is rehearsed (learning/rehearsal.py), and
+        # the rehearsal once made; who chose the search's first cell.
+        self.rehearse = rehearse
+        self.rehearsal = None
+        self.start_chooser = planner.name
         self.prior = prior  # (maps, features) of the map prior, or None
         self.at_release = at_release
         self.meshcat, self.on_episode, self.progress = (meshcat, on_episode,
@@ -378,11 +390,20 @@ class _Phase:
         self.raw, self.prediction = predict(self.model, self.features)
         self.network_cell = nearest_cell(*self.prediction)
         first = self.planner.first_cell(self.obj, plan, self.network_cell)
+        self.start_chooser = self.planner.name
+        if self.rehearse and self.rehearsal is None:
+            self.rehearsal = rehearse(self.scenario, self.obj, self.ik,
+                                      plan.X_WG)
+            self.report(f"rehearsed: {int(self.rehearsal.in_target.sum())} "
+                        f"of {self.rehearsal.in_target.size} lattice cells "
+                        "in the target grasp")
+            if self.rehearsal.cell is not None:
+                first, self.start_chooser = self.rehearsal.cell, "rehearsal"
         start, reach = feasible_start(first, self.ik, plan)
         self.report(f"catch point at t = {plan.catch_point.t_s:.3f} s, "
                     f"v_catch {plan.catch_point.v_catch:.3f} m/s; network: "
                     f"h_catch {self.raw[0]:.3f} m, h_down {self.raw[1]:.3f} m;"
-                    f" {self.planner.name} -> start cell {start}")
+                    f" {self.start_chooser} -> start cell {start}")
         if not all(reach):
             self.report(f"the arm lowers the hand to h_down "
                         f"{H_DOWN_VALUES[reach.index(True)]:.2f} m at most "
@@ -473,7 +494,7 @@ class _Phase:
                 else None),
             achieved_grasp=result.achieved_grasp,
             grasp_error=result.grasp_error, plan=self.plan,
-            chosen_by=(self.planner.name if cell == self.search.start
+            chosen_by=(self.start_chooser if cell == self.search.start
                        else "search")))
         how = "" if result.success else f" ({self.attempts[-1].ending})"
         self.report(f"throw {self.throws}: cell {cell} (h_catch {h_catch:.2f}"
@@ -605,6 +626,8 @@ class _Phase:
             at_release=self.at_release,
             search="wavefront" if self.prior is None else "map-prior",
             planner=self.planner.name,
+            rehearsal=(None if self.rehearsal is None
+                       else self.rehearsal.as_dict()),
             target=target_of(self.scenario).as_dict(),
             start_grasp=start_grasp(self.scenario, self.obj).as_dict())
 

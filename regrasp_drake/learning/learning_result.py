@@ -100,6 +100,9 @@ class LearningResult:
     search: str = "wavefront"  # the search's rule: one of search.SEARCHES
     # Who chose the search's first cell (learning/planner.py Planner.name).
     planner: str = "paper_network"
+    # The first catch's rehearsal (learning/rehearsal.py Rehearsal.as_dict),
+    # or None when not rehearsed.
+    rehearsal: dict | None = None
     target: dict | None = None  # the scenario's (planning/grasp.Target)
     start_grasp: dict | None = None  # how the object lay before the throw
 
@@ -135,6 +138,7 @@ class LearningResult:
             "first_throw": self.first_throw,
             "at_release": self.at_release,
             "search": self.search, "planner": self.planner,
+            **({"rehearsal": self.rehearsal} if self.rehearsal else {}),
             "replanned": self.replanned,
             "first_plan": (None if self.first_plan is None
                            else plan_dict(self.first_plan)),

@@ -80,7 +80,8 @@ MODES = ("watch", "first-throw", "at-release")
 _OPTIONAL = ("mode", "search", "chosen_by")
 # Who can have chosen a learned cell (learning/planner.py Planner.name, then the
 # search).
-CHOSEN_BY = ("learned", "best_constant", "paper_network", "search")
+CHOSEN_BY = ("learned", "best_constant", "paper_network", "rehearsal",
+             "search")
 
 
 @dc.dataclass

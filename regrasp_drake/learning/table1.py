@@ -42,7 +42,7 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
                flight_predictor=None, objects=None,
                max_throws=None, at_release: bool = False,
                search: str = "wavefront", offset_prior=None,
-               planner=None) -> list[dict]:
+               planner=None, rehearse: bool = False) -> list[dict]:
     """Runs the learning phase on table1-row1 … row5 (or on `objects`, names
     of other catalogue objects); returns one row each. With maps_dir: also
     each object's full success map (resumable JSON lines) and a PNG of it
@@ -50,7 +50,7 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
     the first-throw mode (no watching throw); at_release: the first-throw
     mode that plans each throw at its release; search: the learning phase's
     search after the network's cell, "wavefront" (the paper's) or
-    "map-prior" (learning/search.py); planner: learn's (None: the
+    "map-prior" (learning/search.py); planner, rehearse: learn's (None: the
     target's shipped planner); offset_prior: learn's, for a
     regrasp target."""
     if library_path is not None:
@@ -72,7 +72,7 @@ def run_table1(scenario, model, *, ik, library_path=None, maps_dir=None,
                            flight_predictor=flight_predictor,
                            max_throws=max_throws, at_release=at_release,
                            search=search, offset_prior=offset_prior,
-                           planner=planner)
+                           planner=planner, rehearse=rehearse)
         except NoCatchPoint as e:  # the watching throw shows no catch point
             rows.append({"row": row, "object": obj.name,
                          "paper_object_id": obj_id,

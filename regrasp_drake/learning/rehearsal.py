@@ -1,0 +1,84 @@
+"""Rehearsing a first throw's catch in simulation before the throw: a plan
+judged by its margin, not by one guess.
+
+Before the first catching throw (the flight predicted, no watching throw),
+the catch planned from the predicted flight is simulated at a lattice of
+the parameter space's cells (`LATTICE`, 25 of the 150: every other h_catch,
+every third h_down), all forked from one simulated throw
+(episode/branching.py), under what the planner knows: the throw without
+release noise, at the shipped plant steps (`rehearsal_scenario`). The cell
+the throw then uses is the lattice's most robust one in the target grasp
+(labels.label_cell on the lattice: the farthest from a miss, so that a
+release off by the noise, or a landing another step resolves otherwise,
+stays inside the cells that land in the target); with none, the planner's.
+
+The rehearsal sees neither the throw's release noise nor a finer step than
+the shipped one: a run judged under noise or at a finer step
+(benchmarks/regrasp_targets.py --noise-level, --scenario-text) judges it
+on what it did not see.
+"""
+
+import copy
+import dataclasses as dc
+
+import numpy as np
+
+from regrasp_drake.episode.branching import run_cells
+from regrasp_drake.episode.episode import ThrowCache
+from regrasp_drake.learning.labels import label_cell
+from regrasp_drake.parameter_space import (
+    H_CATCH_VALUES,
+    H_DOWN_VALUES,
+    cell_parameters,
+)
+from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.station.scenario import Scenario, ThrowNoise
+from regrasp_drake.world.object_model import ObjectSpec
+
+# The lattice's rows (h_catch indices) and columns (h_down indices).
+LATTICE_ROWS = tuple(range(1, len(H_CATCH_VALUES), 2))   # 0.08 ... 0.40 m
+LATTICE_COLUMNS = tuple(range(1, len(H_DOWN_VALUES), 3))  # -0.13 ... -0.01 m
+LATTICE = [(i, j) for i in LATTICE_ROWS for j in LATTICE_COLUMNS]
+
+
+@dc.dataclass(frozen=True)
+class Rehearsal:
+    """A rehearsal's lattice map (rows × columns, True: in the target
+    grasp) and the cell it picks (None: no lattice cell lands in the
+    target grasp)."""
+    in_target: np.ndarray
+    cell: tuple[int, int] | None
+
+    def as_dict(self) -> dict:
+        return {"cell": None if self.cell is None else list(self.cell),
+                "in_target": int(self.in_target.sum()),
+                "of": int(self.in_target.size),
+                "lattice": self.in_target.astype(int).tolist()}
+
+
+def rehearsal_scenario(scenario: Scenario) -> Scenario:
+    """What the rehearsal simulates: `scenario` without release noise and at
+    the shipped plant steps (the throw's, the catch's and the landing's)."""
+    shipped = Scenario()
+    out = copy.deepcopy(scenario)
+    out.throw.noise = ThrowNoise(seed=scenario.throw.noise.seed)
+    out.plant_config.time_step = shipped.plant_config.time_step
+    for name in ("catch_time_step_s", "landing_time_step_s",
+                 "landing_settle_s"):
+        setattr(out, name, getattr(shipped, name))
+    return out
+
+
+def rehearse(scenario: Scenario, obj: ObjectSpec, ik: ArmIk, X_WG
+             ) -> Rehearsal:
+    """The catch with the palm at X_WG rehearsed at every LATTICE cell (see
+    the module's docstring); one process."""
+    rows = run_cells(rehearsal_scenario(scenario), obj, ik=ik, X_WG=X_WG,
+                     parameters=[cell_parameters(c) for c in LATTICE],
+                     workers=1, throws=ThrowCache(size=1))
+    in_target = np.array([r.success for r in rows]).reshape(
+        len(LATTICE_ROWS), len(LATTICE_COLUMNS))
+    best = label_cell(in_target)
+    cell = (None if best is None
+            else (LATTICE_ROWS[best[0]], LATTICE_COLUMNS[best[1]]))
+    return Rehearsal(in_target=in_target, cell=cell)
