@@ -393,7 +393,7 @@ class _Phase:
         self.start_chooser = self.planner.name
         if self.rehearse and self.rehearsal is None:
             self.rehearsal = rehearse(self.scenario, self.obj, self.ik,
-                                      plan.X_WG)
+                                      plan)
             self.report(f"rehearsed: {int(self.rehearsal.in_target.sum())} "
                         f"of {self.rehearsal.in_target.size} lattice cells "
                         "in the target grasp")

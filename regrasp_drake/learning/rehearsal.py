@@ -6,7 +6,8 @@ the catch planned from the predicted flight is simulated at a lattice of
 the parameter space's cells (`LATTICE`, 25 of the 150: every other h_catch,
 every third h_down), all forked from one simulated throw
 (episode/branching.py), under what the planner knows: the throw without
-release noise, at the shipped plant steps (`rehearsal_scenario`). The cell
+release noise, at the shipped plant steps (`rehearsal_scenario`), the palm
+corrected at the rehearsed release as the throw corrects it. The cell
 the throw then uses is the lattice's most robust one in the target grasp
 (labels.label_cell on the lattice: the farthest from a miss, so that a
 release off by the noise, or a landing another step resolves otherwise,
@@ -24,7 +25,7 @@ import dataclasses as dc
 import numpy as np
 
 from regrasp_drake.episode.branching import run_cells
-from regrasp_drake.episode.episode import ThrowCache
+from regrasp_drake.episode.episode import Episode, ThrowCache
 from regrasp_drake.learning.labels import label_cell
 from regrasp_drake.parameter_space import (
     H_CATCH_VALUES,
@@ -33,6 +34,7 @@ from regrasp_drake.parameter_space import (
 )
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.scenario import Scenario, ThrowNoise
+from regrasp_drake.throw_catch import CatchPlan, release_correction
 from regrasp_drake.world.object_model import ObjectSpec
 
 # The lattice's rows (h_catch indices) and columns (h_down indices).
@@ -69,13 +71,24 @@ def rehearsal_scenario(scenario: Scenario) -> Scenario:
     return out
 
 
-def rehearse(scenario: Scenario, obj: ObjectSpec, ik: ArmIk, X_WG
-             ) -> Rehearsal:
-    """The catch with the palm at X_WG rehearsed at every LATTICE cell (see
-    the module's docstring); one process."""
-    rows = run_cells(rehearsal_scenario(scenario), obj, ik=ik, X_WG=X_WG,
+def rehearse(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
+             plan: CatchPlan) -> Rehearsal:
+    """The catch under `plan` rehearsed at every LATTICE cell (see the
+    module's docstring), its palm corrected at the rehearsed throw's release
+    as the throw will correct it (throw_catch.release_correction); one
+    process."""
+    rehearsed = rehearsal_scenario(scenario)
+    throws = ThrowCache(size=1)
+    episode = Episode(rehearsed, obj, ik=ik, X_WG=plan.X_WG,
+                      catch_parameters=(0.0, 0.0), throws=throws)
+    episode.start()
+    release = episode.advance_to_release()
+    corrected = release_correction(rehearsed, obj, ik, plan, (0.0, 0.0))(
+        release.object_state, release.t)
+    X_WG = plan.X_WG if corrected is None else corrected[0]
+    rows = run_cells(rehearsed, obj, ik=ik, X_WG=X_WG,
                      parameters=[cell_parameters(c) for c in LATTICE],
-                     workers=1, throws=ThrowCache(size=1))
+                     workers=1, throws=throws)
     in_target = np.array([r.success for r in rows]).reshape(
         len(LATTICE_ROWS), len(LATTICE_COLUMNS))
     best = label_cell(in_target)
