@@ -10,13 +10,16 @@ against them.
 For every reachable (object, target) pair (default: Table 1's five and the
 held-out objects under keep/flip at -30, 0, +30 mm) and plant step, the
 static test of episode/static_hold.py (the object laid at rest in the target
-grasp on the open hand, the fingers closed at the catch's speed, held 1 s):
-held in the target grasp or why not. Rows go to <out>.jsonl as they finish
+grasp on the open hand, the fingers closed at the catch's speed, held 1 s;
+each of its closings in turn until one holds): held in the target grasp,
+by which closing, or why not. Rows go to <out>.jsonl as they finish
 (a rerun resumes); the counts, the pairs each step refuses and the two
 steps' agreement to <out>.json, and printed. With --first-throw (rows of
 benchmarks/regrasp_targets.py --modes first-throw), each file's pairs in the
 target grasp: of all reachable pairs, and of those the hand holds at rest
-(at the first step).
+(at the first step), and the pairs the catch lands in the target grasp
+that the static test says no closing holds (a refusal they would
+contradict).
 """
 
 # regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
@@ -54,7 +57,8 @@ def _job(task) -> dict:
     return {"object": name, "target": target.as_dict(), "step_s": step,
             "success": test.success, "held": test.held,
             "reason": test.reason, "rest": test.rest, "closed": test.closed,
-            "grasp_error": test.grasp_error, "line": test.line()}
+            "grasp_error": test.grasp_error, "closing": test.closing,
+            "tried": test.tried, "line": test.line()}
 
 
 def _pair(key) -> tuple:
@@ -90,7 +94,10 @@ def summarize(rows: dict, steps, first_throw: dict) -> dict:
             "reachable": len(reach),
             "in_target": sum(r["success"] for r in reach.values()),
             "holdable": len(held),
-            "in_target_of_holdable": sum(reach[p]["success"] for p in held)}
+            "in_target_of_holdable": sum(reach[p]["success"] for p in held),
+            "in_target_not_holdable": sorted(
+                ":".join(map(str, p)) for p, r in reach.items()
+                if r["success"] and p not in holdable)}
     return out
 
 

@@ -3,6 +3,7 @@ closed on it; a target the closed hand does not hold is refused before the
 throw."""
 
 import contextlib
+import copy
 import io
 import unittest
 from unittest import mock
@@ -39,25 +40,32 @@ class StaticHoldTest(unittest.TestCase):
         self.assertFalse(row1.success)
         self.assertEqual(row1.reason, "dropped")
         self.assertAlmostEqual(row1.rest["offset_mm"], -30.0, delta=3.0)
-        self.assertIn("does not hold it at rest (dropped", row1.line())
+        self.assertEqual(row1.tried, len(static_hold.CLOSINGS))
+        self.assertIn("no closing of the hand holds it at rest", row1.line())
 
     def test_refused_before_the_throw(self):
         err = io.StringIO()
         with contextlib.redirect_stderr(err):
             code = cli.main(["regrasp", "--object", "table1-row1", "--target",
                              "flip", "--offset-mm", "-30", "--first-throw",
-                             "--max-throws", "1"])
+                             "--max-throws", "1", "--scenario-text",
+                             "{regrasp: {check_hold: true}}"])
         self.assertEqual(code, 2)
         line = err.getvalue().strip()
         self.assertEqual(len(line.splitlines()), 1)
-        self.assertIn("object table1-row1, target flip, -30 mm: the closed "
-                      "hand does not hold it at rest (dropped", line)
+        self.assertIn("object table1-row1, target flip, -30 mm: no closing "
+                      "of the hand holds it at rest (4 tried", line)
         self.assertIn("regrasp.check_hold", line)
 
-    def test_any_is_never_tested(self):
+    def test_tested_only_when_asked_and_never_for_any(self):
+        flip = with_target(self.scenario, Target("flip", -30.0))
+        asked = copy.deepcopy(flip)
+        asked.regrasp.check_hold = True
+        any_asked = with_target(asked, Target("any"))
+        row1 = resolve_object(name="table1-row1")
         with mock.patch.object(static_hold, "static_hold") as test:
-            static_hold.check_holdable(self.scenario,
-                                       resolve_object(name="table1-row1"))
+            static_hold.check_holdable(flip, row1)
+            static_hold.check_holdable(any_asked, row1)
         test.assert_not_called()
 
 

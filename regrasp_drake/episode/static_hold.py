@@ -2,17 +2,18 @@
 static test a target must pass before a throw aims for it.
 
 The object is laid in the target grasp (the start grasp turned as the
-target asks, slid to its offset along the object's axis, and across the
-palm where the catch puts it) on the open hand
+target asks, slid to its offset along the object's axis) on the open hand
 at the throw's start pose (the palm level, facing up), let come to rest
-there (start_pose.rest_pose), and the fingers close on it from open to
-closed at the catch's finger speed, the arm's joints held; `hold_s` after
-they are closed, the object must be held by the contacts (the thumb and
-another finger, no slip: grasp_monitor.contact_verdict) in the target
-grasp (planning/grasp.judge). No throw, no landing: what it tests is the
-closing alone. A target that fails it is one
-the catch cannot end in whatever it does before the fingers close
-(`check_holdable` refuses it before the throw).
+there (start_pose.rest_pose), and the fingers close on it at the catch's
+finger speed, the arm's joints held; `hold_s` after they are closed, the
+object must be held by the contacts (the thumb and another finger, no
+slip: grasp_monitor.contact_verdict) in the target grasp
+(planning/grasp.judge). How the hand closes is tried several ways
+(`CLOSINGS`: where across the palm the object lies, whether the fingers
+start from the catch's pre-shape); a target no closing holds is one the
+catch cannot end in whatever it does before the fingers close
+(`check_holdable` refuses it before the throw, when the scenario asks).
+No throw, no landing: what it tests is the closing alone.
 """
 
 import copy
@@ -30,7 +31,10 @@ from regrasp_drake.memo import Memo
 from regrasp_drake.planning import grasp
 from regrasp_drake.planning.catch_plan import lowest_point_along
 from regrasp_drake.station import throw
-from regrasp_drake.station.catch_state_machine import FingerRamp
+from regrasp_drake.station.catch_state_machine import (
+    FingerRamp,
+    preshape_closures,
+)
 from regrasp_drake.station.grasp_monitor import contact_verdict
 from regrasp_drake.station.plant import BUMPER_THICKNESS_M, add_world
 from regrasp_drake.station.scenario import (
@@ -41,6 +45,24 @@ from regrasp_drake.station.scenario import (
 from regrasp_drake.station.start_pose import rest_pose, start_poses
 from regrasp_drake.world import robot
 from regrasp_drake.world.object_model import ObjectSpec
+
+
+@dc.dataclass(frozen=True)
+class Closing:
+    """How the hand closes on the laid object: where across the palm it
+    lies (toward the fingertips, [m]; None: where the catch's palm pose puts
+    it, catch.palm_toward_fingers_m) and whether the fingers start from the
+    catch's pre-shape (catch.preshape_closure) instead of open."""
+    name: str
+    across_m: float | None = None
+    from_preshape: bool = False
+
+
+# The closings tried, in turn, until one holds.
+CLOSINGS = (Closing("open, at the catch's place"),
+            Closing("pre-shaped, at the catch's place", from_preshape=True),
+            Closing("open, centred", across_m=0.0),
+            Closing("open, 20 mm toward the fingertips", across_m=0.02))
 
 
 @dc.dataclass(frozen=True)
@@ -57,6 +79,9 @@ class StaticHold:
     success: bool
     reason: str | None
     grasp_error: dict | None
+    # The closing that held (success), or the last one tried; how many were.
+    closing: str = CLOSINGS[0].name
+    tried: int = 1
 
     def line(self) -> str:
         """One line: the object, the target and what the test saw."""
@@ -70,8 +95,9 @@ class StaticHold:
                    f"{grasp.describe_grasp(self.closed)})"
         closed = ("not held once the fingers close" if not self.held
                   else f"closed: {grasp.describe_grasp(self.closed)}")
-        return f"{head}: the closed hand does not hold it at rest " \
-               f"({self.reason}; {seen}; {closed})"
+        return f"{head}: no closing of the hand holds it at rest " \
+               f"({self.tried} tried; the last, {self.closing}: " \
+               f"{self.reason}; {seen}; {closed})"
 
 
 def static_hold(scenario: Scenario, obj: ObjectSpec,
@@ -79,14 +105,22 @@ def static_hold(scenario: Scenario, obj: ObjectSpec,
                 step_s: float | None = None) -> StaticHold:
     """The static test of `obj` in `target` (None: the scenario's), at the
     plant step `step_s` (None: the catch's; no impact to resolve, the
-    contacts slow: benchmarks/static_hold.py checks it at the landing's).
-    Computed once per scenario, object, target and step in a process
-    (STATIC_HOLDS)."""
+    contacts slow: benchmarks/static_hold.py checks it at the landing's),
+    with each of CLOSINGS in turn until one holds. Computed once per
+    scenario, object, target and step in a process (STATIC_HOLDS)."""
     target = target or target_of(scenario)
     key = (scenario_digest(scenario), pickle.dumps(obj), target, hold_s,
            step_s)
-    return STATIC_HOLDS.get(key, lambda: _static_hold(
-        scenario, obj, target, hold_s, step_s))
+
+    def compute():
+        for n, closing in enumerate(CLOSINGS, 1):
+            test = dc.replace(_static_hold(scenario, obj, target, hold_s,
+                                           step_s, closing),
+                              closing=closing.name, tried=n)
+            if test.success:
+                break
+        return test
+    return STATIC_HOLDS.get(key, compute)
 
 
 STATIC_HOLDS = Memo("static holds")
@@ -101,20 +135,24 @@ def check_holdable(scenario: Scenario, obj: ObjectSpec) -> None:
     test = static_hold(scenario, obj)
     if not test.success:
         raise InputError(test.line() + "; expected a target the hand can "
-                         "hold (regrasp.check_hold: false runs it anyway)")
+                         "hold (regrasp.check_hold: false, the default, runs "
+                         "it anyway)")
 
 
-def target_pose(scenario: Scenario, obj: ObjectSpec, target: grasp.Target
+def target_pose(scenario: Scenario, obj: ObjectSpec, target: grasp.Target,
+                across_m: float | None = None
                 ) -> tuple[RigidTransform, RigidTransform, grasp.Grasp]:
     """(X_WP, X_WO, start grasp): the palm at the throw's start pose and
-    the object in `target`'s grasp there, where the catch's palm pose puts
-    it (catch.palm_toward_fingers_m toward the fingertips), its lowest
-    point 1 mm above the bumper (not yet at rest)."""
+    the object in `target`'s grasp there, across_m toward the fingertips
+    (None: where the catch's palm pose puts it,
+    catch.palm_toward_fingers_m), its lowest point 1 mm above the bumper
+    (not yet at rest)."""
     X_WP, X_WO_start = start_poses(scenario, obj)
     start = palm_grasp(obj, X_WP, X_WO_start)
     R_PO = grasp.target_orientation(target, start)
     p_PO = (X_WP.inverse() @ X_WO_start).translation().copy()
-    p_PO[0] += scenario.catch.palm_toward_fingers_m
+    p_PO[0] += (scenario.catch.palm_toward_fingers_m if across_m is None
+                else across_m)
     # Slid along the object's axis (R_PO's y): the offset, the palm
     # centre's place on the axis, moves the other way.
     laid = grasp.measure(obj, R_PO, p_PO, np.asarray(start.R_PO))
@@ -125,7 +163,8 @@ def target_pose(scenario: Scenario, obj: ObjectSpec, target: grasp.Target
     return X_WP, X_WP @ X_PO, start
 
 
-def _static_hold(scenario, obj, target, hold_s, step_s) -> StaticHold:
+def _static_hold(scenario, obj, target, hold_s, step_s,
+                 closing: Closing) -> StaticHold:
     def result(rest, closed, held, verdict):
         error = None if verdict is None else verdict.as_dict()
         success = bool(verdict is not None and verdict.success)
@@ -135,7 +174,7 @@ def _static_hold(scenario, obj, target, hold_s, step_s) -> StaticHold:
             reason=None if success else grasp.miss_reason(held, error),
             grasp_error=error)
 
-    X_WP, X_WO, start = target_pose(scenario, obj, target)
+    X_WP, X_WO, start = target_pose(scenario, obj, target, closing.across_m)
     try:
         X_WO = rest_pose(scenario, obj, X_WO)
     except InputError:
@@ -150,7 +189,6 @@ def _static_hold(scenario, obj, target, hold_s, step_s) -> StaticHold:
     context = simulator.get_mutable_context()
     pc = plant.GetMyMutableContextFromRoot(context)
     plant.SetPositions(pc, instances.arm, throw.start_q(scenario.throw))
-    plant.SetPositions(pc, instances.hand, robot.HAND_OPEN)
     for index in plant.GetJointIndices(instances.arm):
         plant.get_joint(index).Lock(pc)
     for instance in (instances.arm, instances.hand):
@@ -158,9 +196,12 @@ def _static_hold(scenario, obj, target, hold_s, step_s) -> StaticHold:
             pc, np.zeros(plant.num_actuated_dofs(instance)))
     plant.SetFreeBodyPose(pc, body, X_WO)
     desired = plant.get_desired_state_input_port(instances.hand)
-    ramp = FingerRamp(np.asarray(robot.HAND_OPEN, float),
-                      np.asarray(robot.HAND_CLOSED, float),
-                      robot.FINGER_MAX_SPEED)
+    q_open = np.asarray(robot.HAND_OPEN, float)
+    q_closed = np.asarray(robot.HAND_CLOSED, float)
+    q_from = (q_open + preshape_closures(scenario.catch) * (q_closed - q_open)
+              if closing.from_preshape else q_open)
+    plant.SetPositions(pc, instances.hand, q_from)
+    ramp = FingerRamp(q_from, q_closed, robot.FINGER_MAX_SPEED)
     simulator.Initialize()
     # The fingers' reference, from open to closed at their speed as the
     # catch ramps it, set every sensor period (the catch's update rate).

@@ -360,8 +360,11 @@ class RegraspConfig:
     target: str = "any"
     offset_mm: float = 0.0
     # Whether a target the closed hand does not hold at rest (the static
-    # test, episode/static_hold.py) is refused before the throw.
-    check_hold: bool = True
+    # test, episode/static_hold.py) is refused before the throw. Off by
+    # default: the test still fails 5 of the 60 Table 1 and held-out pairs
+    # that the catch lands in the target grasp at the shipped step and at
+    # half of it (benchmarks/static_hold.py; studies/landing_step).
+    check_hold: bool = False
 
 
 def _plant_config() -> MultibodyPlantConfig:
