@@ -312,7 +312,16 @@ class DigestTest(unittest.TestCase):
         X_PC.translation = X_PC.translation + [0.0, 0.0, 1e-9]
         digests.add(scenario_digest(moved))
         self.assertEqual(len(digests), 7)
-        # What is kept is the YAML's digest.
+        # What is kept is the YAML's digest (with no target, without the
+        # landing's fields, which only a target reads).
         text = scenario_yaml(moved)
-        self.assertEqual(scenario_digest(moved), hashlib.sha256(
-            text[:text.rindex("regrasp:\n")].encode()).hexdigest()[:16])
+        self.assertEqual(scenario_digest(moved), hashlib.sha256(re.sub(
+            r"(?m)^landing_\w+: .*\n", "", text[:text.rindex("regrasp:\n")]
+        ).encode()).hexdigest()[:16])
+        landing = "{landing_time_step_s: 0.000125}"
+        self.assertEqual(scenario_digest(load_scenario(text=landing)),
+                         scenario_digest(base))
+        flip = load_scenario(text="{regrasp: {target: flip}}")
+        self.assertNotEqual(scenario_digest(load_scenario(
+            text="{regrasp: {target: flip}, landing_time_step_s: 0.000125}")),
+            scenario_digest(flip))

@@ -400,7 +400,8 @@ class Scenario:
     # a fraction of a millimetre, and several pads struck in one step act as
     # one inelastic impact: the step, not the contact, decides the landing
     # (studies/landing_step/FINDINGS.md). The paper's `any` catch keeps
-    # catch_time_step_s throughout.
+    # catch_time_step_s throughout; a continuous plant (plant_config
+    # .time_step 0) has no step to hand over to and ignores it.
     landing_time_step_s: float | None = 0.00025
     # How long before that predicted fall the landing's step starts, [s]:
     # before the highest h_catch (0.40 m) can trigger the lowering, so that
@@ -655,7 +656,7 @@ def lands_at_own_step(scenario: Scenario) -> bool:
     landing: under a grasp target, at a step other than the catch's."""
     step = scenario.landing_time_step_s
     catch = scenario.catch_time_step_s or scenario.plant_config.time_step
-    return (step is not None and step != catch
+    return (step is not None and step != catch and catch != 0.0
             and scenario.regrasp.target != "any")
 
 
@@ -683,8 +684,14 @@ def catch_phase_scenario(scenario: Scenario) -> Scenario | None:
 
 
 def scenario_yaml(scenario: Scenario) -> str:
-    """Every value of the scenario, as YAML."""
-    return yaml_dump_typed(scenario, schema=Scenario)
+    """Every value of the scenario, as YAML. Drake's dump leaves out a null
+    field, which a load would give its default: a top-level field null
+    where its default is not (a step handed over to none) is written out,
+    after the rest."""
+    text = yaml_dump_typed(scenario, schema=Scenario)
+    return text + "".join(
+        f"{f.name}: null\n" for f in dc.fields(Scenario)
+        if getattr(scenario, f.name) is None and f.default is not None)
 
 
 def scenario_digest(scenario: Scenario) -> str:

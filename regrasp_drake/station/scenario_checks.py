@@ -82,11 +82,7 @@ def _check_plant(s) -> None:
                               "(plant_config.time_step 0)")
         _in_range("catch_time_step_s", s.catch_time_step_s, dt, 5e-3,
                   f" s (at least plant_config.time_step = {dt} s)")
-    if s.landing_time_step_s is not None:
-        if dt == 0.0:
-            raise field_error("landing_time_step_s", s.landing_time_step_s,
-                              "null with a continuous plant "
-                              "(plant_config.time_step 0)")
+    if s.landing_time_step_s is not None and dt != 0.0:
         catch = s.catch_time_step_s or dt
         _in_range("landing_time_step_s", s.landing_time_step_s, 1e-5, catch,
                   f" s (at most the catch's step, {catch} s)")
@@ -171,7 +167,8 @@ def _check_sensors(s) -> None:
     _in_range("sensors.period_s", n.period_s, max(dt, 1e-4), 0.05, " s")
     for name, step in (("plant_config.time_step", dt),
                        ("catch_time_step_s", s.catch_time_step_s),
-                       ("landing_time_step_s", s.landing_time_step_s)):
+                       ("landing_time_step_s",
+                        s.landing_time_step_s if dt else None)):
         ratio = n.period_s / step if step else 1.0
         if abs(ratio - round(ratio)) > 1e-9 * ratio:
             raise field_error("sensors.period_s", n.period_s,
