@@ -362,8 +362,9 @@ class RegraspConfig:
     # Whether a target the closed hand does not hold at rest (the static
     # test, episode/static_hold.py) is refused before the throw. Off by
     # default: the test still fails 5 of the 60 Table 1 and held-out pairs
-    # that the catch lands in the target grasp at the shipped step and at
-    # half of it (benchmarks/static_hold.py; studies/landing_step).
+    # that the catch lands in the target grasp at the shipped step, 4 of
+    # them at half of it too (benchmarks/static_hold.py; studies/
+    # landing_step).
     check_hold: bool = False
 
 
