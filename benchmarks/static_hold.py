@@ -4,7 +4,7 @@ against them.
 
     .venv/bin/python benchmarks/static_hold.py [--objects NAME ...]
         [--targets keep:-30 ...] [--steps 0.001 0.00025] [--workers N]
-        [--out models/results/static_hold]
+        [--out models/results/landing_step/static_hold_closings]
         [--first-throw ROWS.jsonl ...]
 
 For every reachable (object, target) pair (default: Table 1's five and the
@@ -109,7 +109,8 @@ def main(argv=None) -> int:
                         default=[0.001, 0.00025])
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--out", type=Path,
-                        default=MODELS_DIR / "results" / "static_hold")
+                        default=MODELS_DIR / "results" / "landing_step"
+                        / "static_hold_closings")
     parser.add_argument("--first-throw", nargs="*", type=Path, default=[])
     args = parser.parse_args(argv)
     try:
