@@ -266,7 +266,9 @@ class ThrowCache:
                         ) -> EpisodeDiagram:
         """The diagram at the landing's step `later` that `episode` goes on
         in (Episode._land): the one kept with its throw, else built."""
-        key = episode._key
+        # Kept for catches with fixed parameters only, as the catch's
+        # diagram is (`keep`): one with the MLP's is built for it.
+        key = episode._key if episode.catch_parameters is not None else None
         kept = self._landings.get(key) if key is not None else None
         if kept is None or kept[0] is not episode.ik:
             kept = (episode.ik, episode.build(later))
