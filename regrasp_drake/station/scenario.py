@@ -396,7 +396,7 @@ class Scenario:
     # step through the landing, [s]; null: catch_time_step_s's to the end.
     # The episode is handed over to it (as at the release) landing_lead_s
     # before the object's centre of mass, in free flight from its state at
-    # the catch's start, falls to the palm's grasp pose. At 1 ms a 2-3.5 m/s
+    # the release time, falls to the palm's grasp pose. At 1 ms a 2-3.5 m/s
     # landing moves 2-3.5 mm a step into pads whose contact stops it within
     # a fraction of a millimetre, and several pads struck in one step act as
     # one inelastic impact: the step, not the contact, decides the landing
