@@ -268,7 +268,7 @@ class ThrowCache:
         in (Episode._land): the one kept with its throw, else built."""
         # Kept for catches with fixed parameters only, as the catch's
         # diagram is (`keep`): one with the MLP's is built for it.
-        key = episode._key if episode.catch_parameters is not None else None
+        key = episode.throw_key if episode.catch_parameters is not None else None
         kept = self._landings.get(key) if key is not None else None
         if kept is None or kept[0] is not episode.ik:
             kept = (episode.ik, episode.build(later))
@@ -335,7 +335,7 @@ class Episode:
         # [(time [s], what hands over)], made at its first call.
         self._handovers: list | None = None
         self.landing_at = None  # when handed over to the landing's step, [s]
-        self._key = None  # its throw's in `throws` (ThrowCache.key)
+        self.throw_key = None  # its throw's in `throws` (ThrowCache.key)
         self.build_s = 0.0  # the wall time to build and initialise, [s]
         self._recording = meshcat is not None
 
@@ -356,7 +356,7 @@ class Episode:
         (`hand_over`), and kept. The scenario it goes on under is the
         catch's from here."""
         t0 = time.perf_counter()
-        key = self._key = self.throws.key(
+        key = self.throw_key = self.throws.key(
             self.scenario, self.obj, self.perturbation,
             self.catch_parameters, self.meshcat)
         handover = self.throws.resume(key, self.build, self.X_WG,

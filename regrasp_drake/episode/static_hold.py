@@ -33,7 +33,7 @@ from regrasp_drake.planning.catch_plan import lowest_point_along
 from regrasp_drake.station import throw
 from regrasp_drake.station.catch_state_machine import (
     FingerRamp,
-    preshape_closures,
+    preshape_posture,
 )
 from regrasp_drake.station.grasp_monitor import contact_verdict
 from regrasp_drake.station.plant import BUMPER_THICKNESS_M, add_world
@@ -198,7 +198,7 @@ def _static_hold(scenario, obj, target, hold_s, step_s,
     desired = plant.get_desired_state_input_port(instances.hand)
     q_open = np.asarray(robot.HAND_OPEN, float)
     q_closed = np.asarray(robot.HAND_CLOSED, float)
-    q_from = (q_open + preshape_closures(scenario.catch) * (q_closed - q_open)
+    q_from = (preshape_posture(scenario.catch, q_open, q_closed)
               if closing.from_preshape else q_open)
     plant.SetPositions(pc, instances.hand, q_from)
     ramp = FingerRamp(q_from, q_closed, robot.FINGER_MAX_SPEED)

@@ -167,6 +167,14 @@ def preshape_closures(catch) -> np.ndarray:
     return closures
 
 
+def preshape_posture(catch, hand_open, hand_closed) -> np.ndarray:
+    """The fingers' pre-shaped posture between `hand_open` and
+    `hand_closed` (per joint, [rad]): `preshape_closures` of the way."""
+    hand_open = np.asarray(hand_open, float)
+    return hand_open + preshape_closures(catch) * (
+        np.asarray(hand_closed, float) - hand_open)
+
+
 class FingerRamp:
     """The fingers from q_from toward q_to at their speed (rad/s), with
     what depends on the two postures only made once."""
@@ -221,8 +229,8 @@ class CatchStateMachine(LeafSystem):
         self._toss = scenario.throw.kind == "palm_toss"
         self._hold = self._open + scenario.throw.hold_closure * (
             self._closed - self._open)
-        self._preshape = self._open + preshape_closures(scenario.catch) * (
-            self._closed - self._open)
+        self._preshape = preshape_posture(scenario.catch, self._open,
+                                          self._closed)
         self._open_to_hold = FingerRamp(self._open, self._hold,
                                    finger_speed_rad_per_s)
         self._hold_to_open = FingerRamp(self._hold, self._open,
