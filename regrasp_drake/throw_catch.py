@@ -34,6 +34,7 @@ from regrasp_drake.planning.free_flight import (
     as_watched,
     flight_from_release,
 )
+from regrasp_drake.planning.follow import plan_follow
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
 from regrasp_drake.station.catch_state_machine import Phase, lowered_pose
@@ -272,13 +273,16 @@ def shifted_along_axis(plan: CatchPlan, shift_m: float,
     return dc.replace(plan, X_WG=X_WG, q_grasp=list(result.q))
 
 
-def reachable_h_down(ik: ArmIk, plan: CatchPlan, h_downs) -> list[bool]:
+def reachable_h_down(ik: ArmIk, plan: CatchPlan, h_downs, *,
+                     along_normal: bool = False) -> list[bool]:
     """For each h_down (m), whether the arm reaches the lowered pose the
     catch state machine commands under this plan (the same inverse
     kinematics, from the grasp pose's joint angles): where it does not, the
     episode fails with "lowered pose unreachable" whatever the object
-    does."""
-    return [ik.solve(lowered_pose(plan.X_WG, h), plan.q_grasp).success
+    does. `along_normal`: the lowering along the palm's normal (a catch
+    that follows the object along the palm, `follow.follows`)."""
+    return [ik.solve(lowered_pose(plan.X_WG, h, along_normal),
+                     plan.q_grasp).success
             for h in h_downs]
 
 
@@ -334,7 +338,8 @@ def release_correction(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     (`free_flight.flight_from_release`, no simulation) and planned
     (`plan_catch`); the watched palm moves by the difference of the two
     plans' palms (position and turn), so the closed-form flight's own error
-    cancels. A release equal to the watched one bit for bit (every throw
+    cancels, and follows the object as this release's plan has it
+    (`follow.plan_follow`). A release equal to the watched one bit for bit (every throw
     without noise) leaves the plan untouched. `parameters` (h_catch, h_down)
     stay (None: the MLP system's, which stay too); `record`, a
     ReleaseCorrection, is filled in."""
@@ -373,7 +378,8 @@ def release_correction(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
         record.turn_rad = float(abs(
             (X_WG.rotation() @ plan.X_WG.rotation().inverse())
             .ToAngleAxis().angle()))
-        return X_WG, parameters
+        return X_WG, parameters, plan_follow(scenario, obj,
+                                             seen.catch_point, X_WG)
 
     return at_release
 
@@ -392,6 +398,7 @@ def catch_planned(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
         scenario, obj, ik=ik, X_WG=plan.X_WG, catch_parameters=parameters,
         mlp_features=features, model=network,
         meshcat=meshcat, throw_number=throw_number,
+        follow=plan_follow(scenario, obj, plan.catch_point, plan.X_WG),
         at_release=release_correction(scenario, obj, ik, plan, parameters,
                                       record))
 

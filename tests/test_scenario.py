@@ -316,7 +316,9 @@ class DigestTest(unittest.TestCase):
         # landing's fields, which only a target reads).
         text = scenario_yaml(moved)
         self.assertEqual(scenario_digest(moved), hashlib.sha256(re.sub(
-            r"(?m)^landing_\w+: .*\n", "", text[:text.rindex("regrasp:\n")]
+            r"(?m)^  follow_\w+: .*\n", "", re.sub(
+                r"(?m)^landing_\w+: .*\n", "",
+                text[:text.rindex("regrasp:\n")])
         ).encode()).hexdigest()[:16])
         landing = "{landing_time_step_s: 0.000125}"
         self.assertEqual(scenario_digest(load_scenario(text=landing)),

@@ -45,6 +45,7 @@ from regrasp_drake.episode.result import (
     read_outcome,
     read_result,
 )
+from regrasp_drake.planning.follow import NO_FOLLOW
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.catch_state_machine import ThrowPerturbation
 from regrasp_drake.station.scenario import (
@@ -145,7 +146,7 @@ def landing_time(episode: EpisodeDiagram, context,
     that fall, [s]."""
     x = episode.station.Eval("object_state", context)
     z, v_z = x[6], x[12]  # p_WO's and v_WO's z
-    X_WG = episode.controller.grasp_pose.get_output_port().Eval(
+    X_WG = episode.controller.grasp_pose.GetOutputPort("X_WG").Eval(
         episode.controller.grasp_pose.GetMyContextFromRoot(context))
     height = z - X_WG.translation()[2]
     g = scenario.gravity_m_per_s2
@@ -307,14 +308,17 @@ class Episode:
     scenario's throw.noise draws this throw's release noise, once
     (`perturbation`); throws: the cache of throws simulated to their release
     this episode goes on from and keeps its throw in (default: the
-    process's, THROWS)."""
+    process's, THROWS); follow: how the palm follows the object
+    (planning/follow.plan_follow; None: not at all)."""
 
     def __init__(self, scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
                  X_WG: RigidTransform | None, catch_parameters=None,
                  mlp_features=None, model=None, meshcat=None,
-                 throw_number: int = 1, throws: ThrowCache | None = None):
+                 throw_number: int = 1, throws: ThrowCache | None = None,
+                 follow=None):
         self._t0 = time.perf_counter()
         self.obj, self.ik = obj, ik
+        self.follow = follow
         self.X_WG, self.mlp_features, self.model = X_WG, mlp_features, model
         self.meshcat = meshcat
         # This throw's release noise, for the kept throw's key and the
@@ -378,6 +382,9 @@ class Episode:
         self.diagram = handover.diagram
         self.scenario = handover.scenario
         self.message = handover.message
+        if self.running:  # read with the grasp pose, after the release
+            self.set_task(follow=(NO_FOLLOW if self.follow is None
+                                  else self.follow))
 
     @property
     def running(self) -> bool:
@@ -395,15 +402,15 @@ class Episode:
         return Release(t=t, object_state=np.asarray(state).copy())
 
     def set_task(self, *, X_WG: RigidTransform | None = None,
-                 catch_parameters=None) -> None:
-        """Stage 3: the grasp pose and the catch parameters (h_catch,
-        h_down), [m], set in the running context (None leaves one as it
-        is). Drake handles the update events of a time at the start of the
+                 catch_parameters=None, follow=None) -> None:
+        """Stage 3: the grasp pose, the catch parameters (h_catch,
+        h_down), [m], and the palm's follow (planning/follow.plan_follow)
+        set in the running context (None leaves one as it is). Drake handles the update events of a time at the start of the
         next step, so the state machine's update at the release time reads
         them."""
         self.diagram.controller.set_task(
             self.simulator.get_mutable_context(), X_WG=X_WG,
-            catch_parameters=catch_parameters)
+            catch_parameters=catch_parameters, follow=follow)
 
     def advance_to_outcome(self, t_final: float | None = None) -> str:
         """Stage 4: on until the grasp monitor (or a failure) ends the
@@ -511,8 +518,9 @@ class Episode:
                     self.stop_recording()
                     raise
                 if planned is not None:
-                    X_WG, parameters = planned
-                    self.set_task(X_WG=X_WG, catch_parameters=parameters)
+                    X_WG, parameters, *follow = planned
+                    self.set_task(X_WG=X_WG, catch_parameters=parameters,
+                                  follow=follow[0] if follow else None)
             self.advance_to_outcome()
         return self.result()
 
@@ -521,7 +529,8 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
                 X_WG: RigidTransform | None, catch_parameters=None,
                 mlp_features=None, model=None, meshcat=None,
                 throw_number: int = 1, at_release=None,
-                throws: ThrowCache | None = None) -> EpisodeResult:
+                throws: ThrowCache | None = None,
+                follow=None) -> EpisodeResult:
     """Throws `obj` and, unless X_WG is None (a watching throw), catches it:
     an `Episode` run through its stages. Arguments as Episode's.
 
@@ -529,12 +538,13 @@ def run_episode(scenario: Scenario, obj: ObjectSpec, *, ik: ArmIk,
     release time (before the state machine reads the grasp pose), with the
     object's state then (13: quaternion wxyz, p_WO, w_WO, v_WO) and the
     time; it returns the grasp pose X_WG and the catch parameters (h_catch,
-    h_down) that replace the ones given (None: they stay), None (nothing
+    h_down) that replace the ones given (None: they stay), and optionally
+    the palm's follow (planning/follow.plan_follow), None (nothing
     in the episode changes), or raises InputError (no catch planned: the
     episode ends there and the error propagates). Requires an X_WG (any:
     it is replaced), and catch_parameters to replace them."""
     return Episode(scenario, obj, ik=ik, X_WG=X_WG,
                    catch_parameters=catch_parameters,
                    mlp_features=mlp_features, model=model, meshcat=meshcat,
-                   throw_number=throw_number, throws=throws
+                   throw_number=throw_number, throws=throws, follow=follow
                    ).run(at_release)

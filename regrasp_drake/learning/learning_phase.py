@@ -101,6 +101,7 @@ from regrasp_drake.planning.catch_plan import (
     CatchPoint,
 )
 from regrasp_drake.planning.free_flight import flight_from_release
+from regrasp_drake.planning.follow import follows, plan_follow
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.progress import say
 from regrasp_drake.station.mlp_system import FEATURE_NAMES, CatchMlp, ParameterSpace
@@ -136,11 +137,13 @@ def predict(model: CatchMlp, features) -> tuple[list[float], tuple]:
     return raw, ParameterSpace().clamp(*raw)
 
 
-def feasible_start(cell, ik: ArmIk, plan: CatchPlan):
+def feasible_start(cell, ik: ArmIk, plan: CatchPlan, *,
+                   along_normal: bool = False):
     """(start cell, reach): `cell` (the network's) moved, if the arm cannot
     lower the hand that far under `plan`, to the nearest h_down it can
     (`throw_catch.reachable_h_down`), and that reach per h_down column."""
-    reach = reachable_h_down(ik, plan, H_DOWN_VALUES)
+    reach = reachable_h_down(ik, plan, H_DOWN_VALUES,
+                             along_normal=along_normal)
     i, j = cell
     if not reach[j]:
         j = min((k for k in range(len(reach)) if reach[k]),
@@ -399,7 +402,8 @@ class _Phase:
                         "in the target grasp")
             if self.rehearsal.cell is not None:
                 first, self.start_chooser = self.rehearsal.cell, "rehearsal"
-        start, reach = feasible_start(first, self.ik, plan)
+        start, reach = feasible_start(first, self.ik, plan,
+                                      along_normal=follows(self.scenario)[0])
         self.report(f"catch point at t = {plan.catch_point.t_s:.3f} s, "
                     f"v_catch {plan.catch_point.v_catch:.3f} m/s; network: "
                     f"h_catch {self.raw[0]:.3f} m, h_down {self.raw[1]:.3f} m;"
@@ -430,7 +434,9 @@ class _Phase:
             if self.search is None:
                 self.report(f"planned at the release (t = {t:.3f} s)")
                 self.start_search(self.plan)
-            return self.plan.X_WG, cell_parameters(self.search.next_cell)
+            return (self.plan.X_WG, cell_parameters(self.search.next_cell),
+                    plan_follow(self.scenario, self.obj,
+                                self.plan.catch_point, self.plan.X_WG))
 
         correction = ReleaseCorrection()
         if not self.at_release:  # a watched or predicted plan

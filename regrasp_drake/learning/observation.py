@@ -8,6 +8,7 @@ from regrasp_drake.episode.result import EpisodeResult
 from regrasp_drake.errors import InputError
 from regrasp_drake.parameter_space import H_DOWN_VALUES
 from regrasp_drake.planning.catch_plan import CatchPoint
+from regrasp_drake.planning.follow import follows
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
 from regrasp_drake.station.scenario import Scenario
@@ -81,7 +82,9 @@ def observe(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
                           "reason": result.reason()})
         reach.append(sides)
     return Observation(watched, points, reach, plan, error, None if plan is None
-                       else reachable_h_down(ik, plan, H_DOWN_VALUES))
+                       else reachable_h_down(
+                           ik, plan, H_DOWN_VALUES,
+                           along_normal=follows(scenario)[0]))
 
 
 def episode_dict(result: EpisodeResult) -> dict:

@@ -41,6 +41,7 @@ class CatchPoint:
     tilt: float             # |y_O · z_W|, [-]
     R_WO: np.ndarray | None = None  # the object's orientation there, 3×3
     w_W: np.ndarray | None = None   # its angular velocity there, [rad/s]
+    v_W: np.ndarray | None = None   # its frame origin's velocity, [m/s]
 
     def as_dict(self) -> dict:
         return {"t_s": round(self.t_s, 4),
@@ -58,7 +59,7 @@ def _point(t, p, v, R_WO, k, w) -> CatchPoint:
     return CatchPoint(t_s=float(t[k]), p_WO=p[:, k].copy(),
                       y_W=R_WO[k][:, 1].copy(), v_catch=float(v[2, k]),
                       tilt=float(abs(R_WO[k][2, 1])), R_WO=R_WO[k],
-                      w_W=w[:, k].copy())
+                      w_W=w[:, k].copy(), v_W=v[:, k].copy())
 
 
 def lowest_points_z(obj: ObjectSpec, object_state) -> np.ndarray:
@@ -199,7 +200,7 @@ def horizontal_moments(t, object_state, obj: ObjectSpec, *,
         points.append(CatchPoint(
             t_s=0.5 * (lo + hi), p_WO=x[4:7].copy(), y_W=R[:, 1].copy(),
             v_catch=float(x[12]), tilt=float(abs(R[2, 1])), R_WO=R,
-            w_W=x[7:10].copy()))
+            w_W=x[7:10].copy(), v_W=x[10:13].copy()))
     return points
 
 

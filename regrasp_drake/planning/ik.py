@@ -76,6 +76,11 @@ class ArmIk:
     def plant(self) -> MultibodyPlant:
         return self._plant
 
+    @property
+    def palm_in_flange(self) -> RigidTransform:
+        """X_6P: the palm frame in link 6's (`palm_in_flange`)."""
+        return self._X_6P
+
     def palm_pose(self, q) -> RigidTransform:
         """X_WP at arm joint angles q."""
         self._plant.SetPositions(self._context, q)

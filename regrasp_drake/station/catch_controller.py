@@ -7,12 +7,14 @@ be set in a running context (`CatchController.set_task`)."""
 
 import dataclasses as dc
 
+import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
-from pydrake.systems.framework import DiagramBuilder, LeafSystem
+from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import ConstantVectorSource
 
 from regrasp_drake.paths import MODELS_DIR
+from regrasp_drake.planning.follow import FOLLOW_SIZE, NO_FOLLOW
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
 from regrasp_drake.station.catch_state_machine import (
@@ -28,9 +30,11 @@ from regrasp_drake.world.object_model import ObjectSpec
 
 
 class GraspPoseSource(LeafSystem):
-    """Outputs the palm's grasp pose X_WG, kept as an abstract parameter so
-    that it can be set in a running simulation's context (`set_pose`): a
-    catch planned when the object is seen leaving the hand
+    """Outputs the palm's grasp pose X_WG and how the palm follows the
+    object (`palm_follow`: the catch moment and the palm's twist there,
+    planning/follow.py; zeros, no follow), kept as parameters so that they
+    can be set in a running simulation's context (`set_pose`,
+    `set_follow`): a catch planned when the object is seen leaving the hand
     (`episode.episode.run_episode`'s `at_release`)."""
 
     def __init__(self, X_WG: RigidTransform):
@@ -40,10 +44,21 @@ class GraspPoseSource(LeafSystem):
             "X_WG", lambda: AbstractValue.Make(RigidTransform()),
             lambda context, out: out.set_value(
                 context.get_abstract_parameter(self._index).get_value()))
+        self._follow = self.DeclareNumericParameter(BasicVector(NO_FOLLOW))
+        self.DeclareVectorOutputPort(
+            "palm_follow", FOLLOW_SIZE,
+            lambda context, out: out.SetFromVector(
+                context.get_numeric_parameter(self._follow).get_value()))
 
     def set_pose(self, context, X_WG: RigidTransform) -> None:
         """Sets the pose in this system's context."""
         context.get_mutable_abstract_parameter(self._index).set_value(X_WG)
+
+    def set_follow(self, context, follow) -> None:
+        """Sets the follow (FOLLOW_SIZE values) in this system's
+        context."""
+        context.get_mutable_numeric_parameter(self._follow).SetFromVector(
+            np.asarray(follow, float))
 
 
 @dc.dataclass
@@ -64,13 +79,15 @@ class CatchController:
         return [s for s in (self.parameters, self.features) if s is not None]
 
     def set_task(self, root_context, *, X_WG: RigidTransform | None = None,
-                 catch_parameters=None, watching: bool | None = None) -> None:
+                 catch_parameters=None, watching: bool | None = None,
+                 follow=None) -> None:
         """Sets what this episode does in the diagram's context
         `root_context`, before the state machine reads it (at the release
         time: X_WG and whether it watches; at the trigger: the parameters):
         the palm's grasp pose X_WG, the fixed catch parameters (h_catch,
-        h_down), [m], and `watching` (a watching throw parks the arm and
-        never catches). None leaves a value as it is. The one place an
+        h_down), [m], `watching` (a watching throw parks the arm and
+        never catches) and `follow`, how the palm follows the object
+        (planning/follow.plan_follow). None leaves a value as it is. The one place an
         episode's task is written into a running context (a kept throw going
         on as another episode, a catch planned at the release, a forked
         cell)."""
@@ -82,6 +99,10 @@ class CatchController:
             self.grasp_pose.set_pose(
                 self.grasp_pose.GetMyMutableContextFromRoot(root_context),
                 X_WG)
+        if follow is not None:
+            self.grasp_pose.set_follow(
+                self.grasp_pose.GetMyMutableContextFromRoot(root_context),
+                follow)
         if catch_parameters is not None:
             if not isinstance(self.parameters, ConstantVectorSource):
                 raise ValueError("set_task: the catch parameters come from "
@@ -132,7 +153,9 @@ def add_catch_controller(builder: DiagramBuilder, station: Station,
         scenario, ik, robot.HAND_OPEN, robot.HAND_CLOSED,
         robot.FINGER_MAX_SPEED, park_q=q_park, watching=watching,
         perturbation=perturbation))
-    builder.Connect(grasp.get_output_port(), machine.GetInputPort("X_WG"))
+    builder.Connect(grasp.GetOutputPort("X_WG"), machine.GetInputPort("X_WG"))
+    builder.Connect(grasp.GetOutputPort("palm_follow"),
+                    machine.GetInputPort("palm_follow"))
     builder.Connect(station.GetOutputPort("ir_levels"),
                     machine.GetInputPort("ir_levels"))
     builder.Connect(params.get_output_port(),

@@ -65,6 +65,12 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 from pydrake.trajectories import PiecewisePolynomial
 
+from regrasp_drake.planning.follow import (
+    FOLLOW_SIZE,
+    FollowLaw,
+    follows,
+    joint_follow,
+)
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.planning.time_law import ease_in, quintic, quintic_from
 from regrasp_drake.station.palm_toss import TossDesign, toss_trajectory
@@ -86,8 +92,9 @@ class Phase(enum.IntEnum):
 
 # Plain numbers of the phases the per-step references test (faster than
 # the enum's attribute lookup).
-_THROW, _MOVE, _LOWER, _RETURN = (int(Phase.THROW), int(Phase.MOVE),
-                                  int(Phase.LOWER), int(Phase.RETURN))
+_THROW, _MOVE, _LOWER, _RETURN, _HOLD = (
+    int(Phase.THROW), int(Phase.MOVE), int(Phase.LOWER), int(Phase.RETURN),
+    int(Phase.HOLD))
 
 # Layout of the discrete state vector. _TABLE_END: the first plant step
 # (counted from t = 0) whose references the table no longer holds.
@@ -99,7 +106,12 @@ _QGRASP = slice(19, 25)
 # takes over from the throw while the arm still moves).
 _V0 = slice(25, 31)
 _A0 = slice(31, 37)
-_SIZE = 37
+# The follow (planning/follow.py): the catch moment t_c and the joint
+# velocity q̇_f whose offset G(t) q̇_f the references add from the move on
+# (zero: no follow).
+_TC = 37
+_QF = slice(38, 44)
+_SIZE = 44
 
 # The table of references holds about this many plant steps (rounded to
 # whole sensor samples, at least one): long enough that it is made again
@@ -108,12 +120,17 @@ _SIZE = 37
 TABLE_STEPS = 32
 
 
-def lowered_pose(X_WG: RigidTransform, h_down: float) -> RigidTransform:
+def lowered_pose(X_WG: RigidTransform, h_down: float,
+                 along_normal: bool = False) -> RigidTransform:
     """The palm's pose at the end of the lowering (LOWER): the grasp pose
-    X_WG moved |h_down| straight down. Its joint angles are solved by
-    inverse kinematics from the grasp pose's."""
+    X_WG moved |h_down| straight down (`along_normal`: along the palm's
+    normal, so that the lowering does not move the palm in its own plane,
+    where the follow matches the object's motion: planning/follow.py). Its
+    joint angles are solved by inverse kinematics from the grasp pose's."""
+    down = (X_WG.rotation().col(2) if along_normal
+            else np.array([0.0, 0.0, 1.0]))
     return RigidTransform(X_WG.rotation(),
-                          X_WG.translation() + [0.0, 0.0, -abs(h_down)])
+                          X_WG.translation() - abs(h_down) * down)
 
 
 @dc.dataclass(frozen=True)
@@ -242,6 +259,9 @@ class CatchStateMachine(LeafSystem):
         self._preshape_to_closed = FingerRamp(self._preshape, self._closed,
                                          finger_speed_rad_per_s)
         self._cushion = scenario.catch.return_from_motion
+        self._follow_law = FollowLaw.of(scenario.catch)
+        self._lower_along_normal = follows(scenario)[0]
+        self._follow_fraction = scenario.catch.follow_max_torque_fraction
         self._lower_moving = lowers_moving(scenario)
         self._park_q = np.asarray(park_q, float)
         self._watching = self.DeclareNumericParameter(
@@ -273,6 +293,7 @@ class CatchStateMachine(LeafSystem):
         self._X_WG = self.DeclareAbstractInputPort(
             "X_WG", AbstractValue.Make(RigidTransform()))
         self._arm_state = self.DeclareVectorInputPort("arm_state", 12)
+        self._follow = self.DeclareVectorInputPort("palm_follow", FOLLOW_SIZE)
 
         x0 = np.zeros(_SIZE)
         x0[_PHASE] = Phase.SETTLE
@@ -362,7 +383,25 @@ class CatchStateMachine(LeafSystem):
     def _arm_reference(self, x, t):
         """The arm's (q, v, v̇) reference at time t in state x: at a number,
         three 6-vectors; at a column of k times (the palm toss's
-        `_references`), three k × 6 arrays."""
+        `_references`), three k × 6 arrays. With a follow (x[_QF] not
+        zero), the phase's reference plus the follow's offset G(t) q̇_f,
+        blended in over the move (its quintic s(τ) times the offset)."""
+        q, v, a = self._phase_reference(x, t)
+        if x[_PHASE] < _MOVE or x[_PHASE] > _HOLD or not x[_QF].any():
+            return q, v, a
+        qf = x[_QF]
+        G, dG, ddG = self._follow_law.at(t, x[_TC])
+        if x[_PHASE] == _MOVE:
+            T = x[_T]
+            b, db, ddb = quintic((t - x[_T0]) / T)
+            db, ddb = db / T, ddb / T**2
+            G, dG, ddG = (b * G, db * G + b * dG,
+                          ddb * G + 2.0 * db * dG + b * ddG)
+        return q + G * qf, v + dG * qf, a + ddG * qf
+
+    def _phase_reference(self, x, t):
+        """The arm's (q, v, v̇) reference of the phase alone (no follow),
+        as `_arm_reference`'s."""
         if x[_PHASE] == _THROW:
             tau = np.minimum(t - self._t_throw, self._throw_s)
             return self._throw_reference(tau)
@@ -531,6 +570,12 @@ class CatchStateMachine(LeafSystem):
                                 self._catch.move_to_grasp_s, Phase.MOVE)
             if self._toss:  # the move takes over from the moving arm
                 x[_V0], x[_A0] = v_end, a_end
+            if not self.watching(context):
+                follow = self._follow.Eval(context)
+                x[_TC] = follow[0]
+                x[_QF], _ = joint_follow(self._ik, q_target, follow[1:],
+                                         self._follow_law,
+                                         self._follow_fraction)
         elif (phase == Phase.MOVE and segment_done
               and not self.watching(context) and self._at_grasp(context, x)):
             x[_PHASE] = Phase.WAIT
@@ -540,7 +585,8 @@ class CatchStateMachine(LeafSystem):
                 x[_T_CLOSE] = t
                 x[_H_DOWN] = h_down
                 result = self._ik.solve(
-                    lowered_pose(self._X_WG.Eval(context), h_down),
+                    lowered_pose(self._X_WG.Eval(context), h_down,
+                                 self._lower_along_normal),
                     x[_QGRASP])
                 if not result.success:
                     return self._fail(x, "lowered pose unreachable: "
@@ -553,7 +599,7 @@ class CatchStateMachine(LeafSystem):
         elif phase == Phase.LOWER:
             stop = self._palm_level(context) < self._catch.palm_stop_level
             if segment_done or stop:
-                q_now, v_now, a_now = self._arm_reference(x, t)
+                q_now, v_now, a_now = self._phase_reference(x, t)
                 self._start_segment(x, t, q_now, x[_QGRASP],
                                     self._catch.return_s, Phase.RETURN)
                 if self._cushion:  # the hand turns back without stopping
@@ -572,6 +618,8 @@ class CatchStateMachine(LeafSystem):
 
     @staticmethod
     def _start_segment(x, t, q_a, q_b, duration, phase):
+        """Starts a segment of the phase's reference (`_phase_reference`)
+        from q_a to q_b."""
         x[_PHASE] = phase
         x[_T0] = t
         x[_T] = duration
@@ -580,9 +628,15 @@ class CatchStateMachine(LeafSystem):
         x[_V0] = x[_A0] = 0.0
 
     def _at_grasp(self, context, x):
+        """Whether the palm is at the grasp pose (with a follow, where its
+        offset puts the grasp pose now)."""
         q = self._arm_state.Eval(context)[:6]
         X_WP = self._ik.palm_pose(q)
-        X_WG = self._ik.palm_pose(x[_QGRASP])
+        q_grasp = x[_QGRASP]
+        if x[_QF].any():
+            q_grasp = q_grasp + self._follow_law.at(
+                context.get_time(), x[_TC])[0] * x[_QF]
+        X_WG = self._ik.palm_pose(q_grasp)
         error = np.linalg.norm(X_WP.translation() - X_WG.translation())
         return error < self._catch.grasp_tolerance_m
 

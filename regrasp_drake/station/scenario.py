@@ -299,6 +299,27 @@ class CatchConfig:
     # Table 1 + held-out × six targets: 39 of 60 in the target grasp, 27 of
     # 60 false (docs/regrasp.md, The landing).
     lower_ends_moving: typing.Optional[bool] = None
+    # The catch that follows the object (planning/follow.py): the palm
+    # moves with the object's horizontal velocity at the planned catch
+    # moment (follow_along) and turns with its pitch, about the palm's
+    # fingertip axis (follow_pitch), over the contact, matched as far as
+    # follow_max_torque_fraction of the servos' torque limits allows. None:
+    # on under a grasp target, off under "any" (the paper's catch).
+    follow_along: typing.Optional[bool] = False
+    follow_pitch: typing.Optional[bool] = False
+    # Its time law around the catch moment t_c (planning/follow.FollowLaw),
+    # [s]: the palm reaches the object's motion over follow_ramp_s before
+    # t_c, keeps it follow_hold_s after (the impact comes after t_c: the
+    # palm lowers to meet the object), stops over follow_stop_s and comes
+    # back to the planned grasp pose over follow_back_s.
+    follow_ramp_s: float = 0.1
+    follow_hold_s: float = 0.06
+    follow_stop_s: float = 0.1
+    follow_back_s: float = 0.3
+    # The follow's largest acceleration, with the arm's weight, needs at
+    # most this fraction of each arm servo's torque limit; a faster object
+    # is followed at a fraction of its velocity, [-].
+    follow_max_torque_fraction: float = 0.8
     # Where (h_catch, h_down) come from: "fixed" (the two values below) or
     # "mlp" (the network in `weights`).
     parameter_source: str = "fixed"
@@ -709,6 +730,8 @@ def scenario_digest(scenario: Scenario) -> str:
             # Nor do the landing's fields, which only a target reads.
             text = re.sub(r"(?m)^landing_\w+: .*\n", "",
                           text[:text.rindex("regrasp:\n")])
+            # Nor the follow's, which is off under "any".
+            text = re.sub(r"(?m)^  follow_\w+: .*\n", "", text)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
     # NumPy's arrays (Drake's transforms in the directives) in full: every
     # float as the shortest text that reads back the same, none elided.

@@ -213,6 +213,11 @@ def _check_catch(s) -> None:
         raise field_error("catch.lower_ends_moving", k.lower_ends_moving,
                           "false unless catch.return_from_motion is true (the "
                           "return takes over from the lowering's motion)")
+    for name in ("follow_ramp_s", "follow_hold_s", "follow_stop_s",
+                 "follow_back_s"):
+        _in_range(f"catch.{name}", getattr(k, name), 0.01, 1.0, " s")
+    _in_range("catch.follow_max_torque_fraction",
+              k.follow_max_torque_fraction, 0.05, 1.0)
     if k.parameter_source not in _SOURCES:
         raise field_error("catch.parameter_source", k.parameter_source,
                           f"one of {_SOURCES}")
