@@ -23,18 +23,19 @@ from regrasp_drake.world.objects import resolve_object
 
 class RehearsalScenarioTest(unittest.TestCase):
     def test_no_noise_and_the_shipped_steps(self):
-        judged = load_scenario(text="{landing_time_step_s: 0.000125, "
-                                    "catch_time_step_s: 0.0005, throw: "
+        judged = load_scenario(text="{landing_time_step_s: 0.0000625, "
+                                    "target_catch_time_step_s: 0.00025, "
+                                    "throw: "
                                     "{noise: {release_time_std_s: 0.002, "
                                     "seed: 3}}}")
         rehearsed = rehearsal_scenario(judged)
         shipped = Scenario()
         self.assertTrue(rehearsed.throw.noise.is_zero())
         self.assertEqual(
-            (rehearsed.catch_time_step_s, rehearsed.landing_time_step_s,
-             rehearsed.plant_config.time_step),
-            (shipped.catch_time_step_s, shipped.landing_time_step_s,
-             shipped.plant_config.time_step))
+            (rehearsed.catch_time_step_s, rehearsed.target_catch_time_step_s,
+             rehearsed.landing_time_step_s, rehearsed.plant_config.time_step),
+            (shipped.catch_time_step_s, shipped.target_catch_time_step_s,
+             shipped.landing_time_step_s, shipped.plant_config.time_step))
         # The judged scenario itself is left as it was.
         self.assertEqual(judged.throw.noise.release_time_std_s, 0.002)
         self.assertEqual(len(LATTICE), len(LATTICE_ROWS) * len(LATTICE_COLUMNS))
@@ -45,9 +46,9 @@ class RehearsedFirstThrowTest(unittest.TestCase):
         # Without noise at the shipped steps the throw is what the
         # rehearsal simulated: its cell lands in the target grasp.
         torch.set_num_threads(1)
-        scenario = with_target(load_scenario(), Target("keep", -30.0))
+        scenario = with_target(load_scenario(), Target("flip"))
         model = load_weights(MODELS_DIR / scenario.catch.weights)[0]
-        result = learn(scenario, resolve_object(name="holdout-dumbbell-d300"),
+        result = learn(scenario, resolve_object(name="table1-row2"),
                        model, ik=ArmIk(), max_throws=1, progress=None,
                        flight_predictor=FlightPredictor.load(
                            MODELS_DIR / "flight_predictor.json"),

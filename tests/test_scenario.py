@@ -317,7 +317,7 @@ class DigestTest(unittest.TestCase):
         text = scenario_yaml(moved)
         self.assertEqual(scenario_digest(moved), hashlib.sha256(re.sub(
             r"(?m)^  follow_\w+: .*\n", "", re.sub(
-                r"(?m)^landing_\w+: .*\n", "",
+                r"(?m)^(landing_\w+|target_catch_time_step_s): .*\n", "",
                 text[:text.rindex("regrasp:\n")])
         ).encode()).hexdigest()[:16])
         landing = "{landing_time_step_s: 0.000125}"
@@ -325,5 +325,5 @@ class DigestTest(unittest.TestCase):
                          scenario_digest(base))
         flip = load_scenario(text="{regrasp: {target: flip}}")
         self.assertNotEqual(scenario_digest(load_scenario(
-            text="{regrasp: {target: flip}, landing_time_step_s: 0.000125}")),
+            text="{regrasp: {target: flip}, landing_time_step_s: 0.0000625}")),
             scenario_digest(flip))

@@ -39,6 +39,7 @@ from regrasp_drake.station.grasp_monitor import contact_verdict
 from regrasp_drake.station.plant import BUMPER_THICKNESS_M, add_world
 from regrasp_drake.station.scenario import (
     Scenario,
+    catch_step_s,
     scenario_digest,
     target_of,
 )
@@ -182,7 +183,7 @@ def _static_hold(scenario, obj, target, hold_s, step_s,
     rest = palm_grasp(obj, X_WP, X_WO, start).as_dict()
     plant_scenario = copy.deepcopy(scenario)
     plant_scenario.plant_config.time_step = step_s or (
-        scenario.catch_time_step_s or scenario.plant_config.time_step)
+        catch_step_s(scenario) or scenario.plant_config.time_step)
     builder = DiagramBuilder()
     plant, _, instances, body, _ = add_world(builder, plant_scenario, obj)
     simulator = Simulator(builder.Build())

@@ -65,8 +65,8 @@ def rehearsal_scenario(scenario: Scenario) -> Scenario:
     out = copy.deepcopy(scenario)
     out.throw.noise = ThrowNoise(seed=scenario.throw.noise.seed)
     out.plant_config.time_step = shipped.plant_config.time_step
-    for name in ("catch_time_step_s", "landing_time_step_s",
-                 "landing_settle_s"):
+    for name in ("catch_time_step_s", "target_catch_time_step_s",
+                 "landing_time_step_s", "landing_settle_s"):
         setattr(out, name, getattr(shipped, name))
     return out
 

@@ -413,6 +413,14 @@ class Scenario:
     # 0.5 ms: benchmarks/map_convergence.py). Must be null on a continuous
     # plant.
     catch_time_step_s: float | None = 0.001
+    # Under a grasp target (regrasp.target other than "any"), the catch's
+    # step instead, from the release on (`catch_step_s`), [s]; null:
+    # catch_time_step_s's. At 1 ms the fingers' closing and the hold after
+    # the landing still change 7 first throws in 60 against half the step;
+    # at 0.5 ms (with the landing at 0.125 ms) 1 in 60 against a quarter
+    # (studies/landing_step/FINDINGS.md). The paper's `any` catch keeps
+    # catch_time_step_s.
+    target_catch_time_step_s: float | None = 0.0005
     # Under a grasp target (regrasp.target other than "any"), the plant's
     # step through the landing, [s]; null: catch_time_step_s's to the end.
     # The episode is handed over to it (as at the release) landing_lead_s
@@ -424,7 +432,7 @@ class Scenario:
     # (studies/landing_step/FINDINGS.md). The paper's `any` catch keeps
     # catch_time_step_s throughout; a continuous plant (plant_config
     # .time_step 0) has no step to hand over to and ignores it.
-    landing_time_step_s: float | None = 0.00025
+    landing_time_step_s: float | None = 0.000125
     # How long before that predicted fall the landing's step starts, [s]:
     # before the highest h_catch (0.40 m) can trigger the lowering, so that
     # a success map's cells, forked at their triggers, share it.
@@ -650,26 +658,37 @@ def with_time_step(scenario: Scenario, time_step_s: float) -> Scenario:
     if it would be finer than the throw's)."""
     copied = copy.deepcopy(scenario)
     copied.plant_config.time_step = float(time_step_s)
-    if (copied.catch_time_step_s is not None
-            and copied.catch_time_step_s < time_step_s):
-        copied.catch_time_step_s = None
-    if time_step_s == 0.0:
-        copied.catch_time_step_s = None
+    for name in ("catch_time_step_s", "target_catch_time_step_s"):
+        step = getattr(copied, name)
+        if time_step_s == 0.0 or (step is not None and step < time_step_s):
+            setattr(copied, name, None)
     return validate(copied)
 
 
 def with_catch_time_step(scenario: Scenario, time_step_s: float) -> Scenario:
     """A validated copy of `scenario` whose plant steps by time_step_s from
-    the throw's end on (catch_time_step_s)."""
+    the throw's end on (catch_time_step_s, under a target too)."""
     copied = copy.deepcopy(scenario)
     copied.catch_time_step_s = float(time_step_s)
+    copied.target_catch_time_step_s = None
     return validate(copied)
+
+
+def catch_step_s(scenario: Scenario) -> float | None:
+    """The plant's step from the release time on: under a grasp target,
+    target_catch_time_step_s (when set), else catch_time_step_s (None: the
+    throw's step throughout)."""
+    if (scenario.regrasp.target != "any"
+            and scenario.target_catch_time_step_s is not None
+            and scenario.catch_time_step_s is not None):
+        return scenario.target_catch_time_step_s
+    return scenario.catch_time_step_s
 
 
 def hands_over(scenario: Scenario) -> bool:
     """Whether an episode goes on at another plant step from the release
-    time (catch_time_step_s; see catch_phase_scenario)."""
-    step = scenario.catch_time_step_s
+    time (`catch_step_s`; see catch_phase_scenario)."""
+    step = catch_step_s(scenario)
     return step is not None and step != scenario.plant_config.time_step
 
 
@@ -677,7 +696,7 @@ def lands_at_own_step(scenario: Scenario) -> bool:
     """Whether a catching episode goes on at landing_time_step_s through the
     landing: under a grasp target, at a step other than the catch's."""
     step = scenario.landing_time_step_s
-    catch = scenario.catch_time_step_s or scenario.plant_config.time_step
+    catch = catch_step_s(scenario) or scenario.plant_config.time_step
     return (step is not None and step != catch and catch != 0.0
             and scenario.regrasp.target != "any")
 
@@ -691,17 +710,18 @@ def landing_phase_scenario(scenario: Scenario) -> Scenario | None:
     copied = copy.deepcopy(scenario)
     copied.plant_config.time_step = scenario.landing_time_step_s
     copied.catch_time_step_s = None
+    copied.target_catch_time_step_s = None
     copied.landing_time_step_s = None
     return copied
 
 
 def catch_phase_scenario(scenario: Scenario) -> Scenario | None:
     """The scenario an episode goes on under from the release time: the
-    plant at catch_time_step_s; None when that is the throw's step."""
+    plant at `catch_step_s`; None when that is the throw's step."""
     if not hands_over(scenario):
         return None
     copied = copy.deepcopy(scenario)
-    copied.plant_config.time_step = scenario.catch_time_step_s
+    copied.plant_config.time_step = catch_step_s(scenario)
     return copied
 
 
@@ -728,8 +748,9 @@ def scenario_digest(scenario: Scenario) -> str:
         text = scenario_yaml(scenario)
         if scenario.regrasp == RegraspConfig():
             # Nor do the landing's fields, which only a target reads.
-            text = re.sub(r"(?m)^landing_\w+: .*\n", "",
-                          text[:text.rindex("regrasp:\n")])
+            text = re.sub(
+                r"(?m)^(landing_\w+|target_catch_time_step_s): .*\n", "",
+                text[:text.rindex("regrasp:\n")])
             # Nor the follow's, which is off under "any".
             text = re.sub(r"(?m)^  follow_\w+: .*\n", "", text)
         return hashlib.sha256(text.encode()).hexdigest()[:16]

@@ -82,8 +82,12 @@ def _check_plant(s) -> None:
                               "(plant_config.time_step 0)")
         _in_range("catch_time_step_s", s.catch_time_step_s, dt, 5e-3,
                   f" s (at least plant_config.time_step = {dt} s)")
+    if s.target_catch_time_step_s is not None and dt != 0.0:
+        _in_range("target_catch_time_step_s", s.target_catch_time_step_s,
+                  dt, 5e-3, f" s (at least plant_config.time_step = {dt} s)")
     if s.landing_time_step_s is not None and dt != 0.0:
-        catch = s.catch_time_step_s or dt
+        catch = min(s.catch_time_step_s or dt,
+                    s.target_catch_time_step_s or dt)
         _in_range("landing_time_step_s", s.landing_time_step_s, 1e-5, catch,
                   f" s (at most the catch's step, {catch} s)")
     _in_range("landing_lead_s", s.landing_lead_s, 0.0, 2.0, " s")
