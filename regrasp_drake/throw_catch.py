@@ -339,10 +339,10 @@ def release_correction(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     (`plan_catch`); the watched palm moves by the difference of the two
     plans' palms (position and turn), so the closed-form flight's own error
     cancels, and follows the object as this release's plan has it
-    (`follow.plan_follow`). A release equal to the watched one bit for bit (every throw
-    without noise) leaves the plan untouched. `parameters` (h_catch, h_down)
-    stay (None: the MLP system's, which stay too); `record`, a
-    ReleaseCorrection, is filled in."""
+    (`follow.plan_follow`). A release equal to the watched one bit for bit
+    (every throw without noise) leaves the plan untouched. `parameters`
+    (h_catch, h_down) stay (None: the MLP system's, which stay too);
+    `record`, a ReleaseCorrection, is filled in."""
     record = ReleaseCorrection() if record is None else record
     nominal = []  # computed once, on the first release that differs
 

@@ -114,13 +114,14 @@ class ExceptionsTest(Row2Fixture, unittest.TestCase):
 
 
 class LandingStepTest(unittest.TestCase):
-    """A target catch lands in the same grasp at the shipped landing step
-    (0.25 ms through the landing, 1 ms around it) and at half of both (0.125
-    and 0.5 ms): one pair per throw kind, a spinning flip and a keep."""
+    """A target catch lands in the same grasp at the shipped steps (0.125 ms
+    through the landing, 0.5 ms around it) and at half of both (0.0625 and
+    0.25 ms): one pair per throw kind, a spinning flip and a keep."""
 
     def test_the_same_grasp_at_half_the_step(self):
         torch.set_num_threads(1)
-        half = "{landing_time_step_s: 0.000125, catch_time_step_s: 0.0005}"
+        half = ("{landing_time_step_s: 0.0000625, "
+                "target_catch_time_step_s: 0.00025}")
         for name, target in (("table1-row2", Target("flip")),
                              ("table1-row4", Target("keep"))):
             obj = resolve_object(name=name)

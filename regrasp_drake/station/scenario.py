@@ -422,23 +422,26 @@ class Scenario:
     # catch_time_step_s.
     target_catch_time_step_s: float | None = 0.0005
     # Under a grasp target (regrasp.target other than "any"), the plant's
-    # step through the landing, [s]; null: catch_time_step_s's to the end.
-    # The episode is handed over to it (as at the release) landing_lead_s
-    # before the object's centre of mass, in free flight from its state at
+    # step through the landing, [s]; null: the catch's (`catch_step_s`) to
+    # the end. The episode is handed over to it (as at the release)
+    # landing_lead_s before the object's centre of mass, in free flight from
+    # its state at
     # the release time, falls to the palm's grasp pose. At 1 ms a 2-3.5 m/s
     # landing moves 2-3.5 mm a step into pads whose contact stops it within
     # a fraction of a millimetre, and several pads struck in one step act as
     # one inelastic impact: the step, not the contact, decides the landing
-    # (studies/landing_step/FINDINGS.md). The paper's `any` catch keeps
-    # catch_time_step_s throughout; a continuous plant (plant_config
-    # .time_step 0) has no step to hand over to and ignores it.
+    # (studies/landing_step/FINDINGS.md). At 0.125 ms (with the catch at
+    # 0.5 ms) 59 of 60 first throws end as at half of both steps. The
+    # paper's `any` catch keeps catch_time_step_s throughout; a continuous
+    # plant (plant_config.time_step 0) has no step to hand over to and
+    # ignores it.
     landing_time_step_s: float | None = 0.000125
     # How long before that predicted fall the landing's step starts, [s]:
     # before the highest h_catch (0.40 m) can trigger the lowering, so that
     # a success map's cells, forked at their triggers, share it.
     landing_lead_s: float = 0.2
-    # How long after that predicted fall the catch goes back to
-    # catch_time_step_s, [s]; null: the landing's step to the end. 0.15 s
+    # How long after that predicted fall the catch goes back to its step
+    # (`catch_step_s`), [s]; null: the landing's step to the end. 0.15 s
     # covers the impact and its bounce: the first throws of Table 1 and the
     # held-out objects end the same with it as with the fine step to the
     # end (60 of 60 pairs; studies/landing_step/FINDINGS.md).
