@@ -11,6 +11,8 @@ from regrasp_drake.learning.rehearsal import (
     LATTICE,
     LATTICE_COLUMNS,
     LATTICE_ROWS,
+    MODES,
+    mode_scenario,
     rehearsal_scenario,
 )
 from regrasp_drake.paths import MODELS_DIR
@@ -40,6 +42,13 @@ class RehearsalScenarioTest(unittest.TestCase):
         self.assertEqual(judged.throw.noise.release_time_std_s, 0.002)
         self.assertEqual(len(LATTICE), len(LATTICE_ROWS) * len(LATTICE_COLUMNS))
 
+    def test_the_modes(self):
+        scenario = load_scenario()
+        self.assertTrue(mode_scenario(scenario, "pitch").catch.follow_pitch)
+        self.assertFalse(mode_scenario(scenario, "plain").catch.follow_pitch)
+        with self.assertRaisesRegex(ValueError, "mode: got 'spin'"):
+            mode_scenario(scenario, "spin")
+
 
 class RehearsedFirstThrowTest(unittest.TestCase):
     def test_the_rehearsal_predicts_the_throw_it_rehearses(self):
@@ -55,6 +64,10 @@ class RehearsedFirstThrowTest(unittest.TestCase):
                        rehearse=True)
         rehearsal = result.rehearsal
         self.assertIsNotNone(rehearsal["cell"])
+        # Both catch modes rehearsed; the lattice is the picked mode's.
+        self.assertEqual(set(rehearsal["by_mode"]), set(MODES))
+        self.assertEqual(rehearsal["in_target"],
+                         rehearsal["by_mode"][rehearsal["mode"]])
         i, j = rehearsal["cell"]
         self.assertEqual(rehearsal["lattice"][LATTICE_ROWS.index(i)]
                          [LATTICE_COLUMNS.index(j)], 1)

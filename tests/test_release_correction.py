@@ -12,6 +12,7 @@ import numpy as np
 from regrasp_drake.episode.episode import release_time, run_episode
 from regrasp_drake.learning.flight_predictor import FlightPredictor
 from regrasp_drake.paths import MODELS_DIR
+from regrasp_drake.planning.follow import NO_FOLLOW
 from regrasp_drake.planning.free_flight import flight_from_release
 from regrasp_drake.station.scenario import ThrowNoise
 from regrasp_drake.throw_catch import (
@@ -80,8 +81,10 @@ class ReleaseCorrectionTest(Row2Fixture, unittest.TestCase):
         result = self._catch(noisy, record, seen)
         self.assertEqual(record.how, "shifted")
         self.assertEqual(len(seen), 1)
-        state, (X_WG, parameters) = seen[0]
+        state, (X_WG, parameters, follow) = seen[0]
         self.assertEqual(tuple(parameters), _CELL)
+        # The paper's catch follows nothing (planning/follow.py).
+        np.testing.assert_array_equal(follow, NO_FOLLOW)
         self.assertEqual(result.h_catch, _CELL[0])
         # Where the plan made at this release from what was seen puts the
         # palm: the noise moved it by centimetres, and the correction
@@ -125,7 +128,7 @@ class PredictedPlanCorrectionTest(Row2Fixture, unittest.TestCase):
         # flight's error (< 3 mm, as above) of the plan from the release
         # seen.
         self.assertEqual(record.how, "shifted")
-        state, (X_WG, _) = seen[0]
+        state, (X_WG, _, _) = seen[0]
         at_release_plan = plan_catch(
             self.scenario, self.obj, self.ik, flight_from_release(
                 state, release_time(self.scenario), self.obj,

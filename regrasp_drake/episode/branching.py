@@ -37,7 +37,7 @@ from regrasp_drake.station.catch_state_machine import Phase
 
 
 def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
-              on_result=None, throws=None) -> list[EpisodeResult]:
+              on_result=None, throws=None, follow=None) -> list[EpisodeResult]:
     """Runs one catch episode per (h_catch, h_down) in `parameters`.
 
     Returns one EpisodeResult per entry, in order, as `run_episode` gives
@@ -47,11 +47,12 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
     children run at once.
     With a catch step of its own (scenario.catch_time_step_s), the shared
     run is handed over to it at the release time (episode.hand_over), as
-    `run_episode`'s; `throws` as run_episode's (default: THROWS).
+    `run_episode`'s; `throws` and `follow` as run_episode's (default:
+    THROWS; no follow).
     """
     t0 = time.perf_counter()
     parameters = [(float(h), float(d)) for h, d in parameters]
-    shared = _shared_run(scenario, obj, ik, X_WG, throws)
+    shared = _shared_run(scenario, obj, ik, X_WG, throws, follow)
     t_final = shared.scenario.monitor.max_time_s + 1.0
     rows = [None] * len(parameters)
 
@@ -93,14 +94,14 @@ def run_cells(scenario, obj, *, ik, X_WG, parameters, workers: int = 1,
     return rows
 
 
-def _shared_run(scenario, obj, ik, X_WG, throws) -> Episode:
+def _shared_run(scenario, obj, ik, X_WG, throws, follow=None) -> Episode:
     """The episode the cells share, at the release time when handed over
     there (or at the start): the throw
     simulated before by the watching throw the plan came from
     (episode.ThrowCache), or simulated here and kept; its parameters
     (0, 0) never trigger."""
     shared = Episode(scenario, obj, ik=ik, X_WG=X_WG,
-                     catch_parameters=(0.0, 0.0), throws=throws)
+                     catch_parameters=(0.0, 0.0), throws=throws, follow=follow)
     shared.start()
     simulator, episode = shared.simulator, shared.diagram
     if shared.handover.before is not None:

@@ -84,7 +84,7 @@ from regrasp_drake.learning.learning_result import (
     NoCatchPoint,
 )
 from regrasp_drake.learning.planner import Planner, load_planner
-from regrasp_drake.learning.rehearsal import rehearse
+from regrasp_drake.learning.rehearsal import MODES, mode_scenario, rehearse
 from regrasp_drake.learning.search import (
     SEARCHES,
     Search,
@@ -196,9 +196,10 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
     flight_predictor: a learning.flight_predictor.FlightPredictor for the
     first-throw mode (no watching throw), or None. rehearse: with it, the
     first catch is rehearsed in simulation before the throw at a lattice of
-    cells and starts from the most robust one in the target grasp
-    (learning/rehearsal.py; a chooser of its own, `chosen_by`
-    "rehearsal"). at_release: the first-throw mode that plans each throw's
+    cells in each catch mode (the palm waiting, or turning with the
+    object's pitch) and starts from the most robust one in the target grasp,
+    in that cell's mode (learning/rehearsal.py; a chooser of its own,
+    `chosen_by` "rehearsal"). at_release: the first-throw mode that plans each throw's
     catch at its release (no flight predictor then).
 
     library_path: where the learned entry is stored when a throw catches
@@ -302,6 +303,9 @@ class _Phase:
         # the rehearsal once made; who chose the search's first cell.
         self.rehearse = rehearse
         self.rehearsal = None
+        # The scenario of the catching throws: the phase's, in the catch
+        # mode the rehearsal picked (learning/rehearsal.py).
+        self.catch_scenario = scenario
         self.start_chooser = planner.name
         self.prior = prior  # (maps, features) of the map prior, or None
         self.at_release = at_release
@@ -396,12 +400,15 @@ class _Phase:
         self.start_chooser = self.planner.name
         if self.rehearse and self.rehearsal is None:
             self.rehearsal = rehearse(self.scenario, self.obj, self.ik,
-                                      plan)
-            self.report(f"rehearsed: {int(self.rehearsal.in_target.sum())} "
-                        f"of {self.rehearsal.in_target.size} lattice cells "
-                        "in the target grasp")
+                                      plan, modes=MODES)
+            counts = ", ".join(f"{mode} {n}" for mode, n in
+                               self.rehearsal.counts.items())
+            self.report(f"rehearsed: lattice cells in the target grasp of "
+                        f"{self.rehearsal.in_target.size}: {counts}")
             if self.rehearsal.cell is not None:
                 first, self.start_chooser = self.rehearsal.cell, "rehearsal"
+                self.catch_scenario = mode_scenario(self.scenario,
+                                                    self.rehearsal.mode)
         start, reach = feasible_start(first, self.ik, plan,
                                       along_normal=follows(self.scenario)[0])
         self.report(f"catch point at t = {plan.catch_point.t_s:.3f} s, "
@@ -446,7 +453,7 @@ class _Phase:
             # network; the later cells are given.
             from_network = cell == self.search.start == self.network_cell
             result = catch_planned(
-                self.scenario, self.obj, self.ik, self.plan,
+                self.catch_scenario, self.obj, self.ik, self.plan,
                 None if from_network else cell_parameters(cell),
                 network=self.model if from_network else None,
                 features=self.features if from_network else None,

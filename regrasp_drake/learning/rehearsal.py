@@ -13,6 +13,15 @@ the throw then uses is the lattice's most robust one in the target grasp
 release off by the noise, or a landing another step resolves otherwise,
 stays inside the cells that land in the target); with none, the planner's.
 
+With `modes`, the lattice is rehearsed once per catch mode (`MODES`:
+"plain", the palm waiting; "pitch", the palm turning with the object's
+pitch, planning/follow.py), and the throw takes the mode whose lattice has
+the most robust cell in the target grasp (labels.robustness; a tie goes to
+the one with more such cells, then to "plain"): the follow lands some
+pairs the waiting palm tilts and tips others off the palm's edge
+(studies/landing_step/FINDINGS.md §7), which the rehearsal tells apart
+before the throw.
+
 The rehearsal sees neither the throw's release noise nor a finer step than
 the shipped one: a run judged under noise or at a finer step
 (benchmarks/regrasp_targets.py --noise-level, --scenario-text) judges it
@@ -26,12 +35,13 @@ import numpy as np
 
 from regrasp_drake.episode.branching import run_cells
 from regrasp_drake.episode.episode import Episode, ThrowCache
-from regrasp_drake.learning.labels import label_cell
+from regrasp_drake.learning.labels import label_cell, robustness
 from regrasp_drake.parameter_space import (
     H_CATCH_VALUES,
     H_DOWN_VALUES,
     cell_parameters,
 )
+from regrasp_drake.planning.follow import plan_follow
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.scenario import Scenario, ThrowNoise
 from regrasp_drake.throw_catch import CatchPlan, release_correction
@@ -41,21 +51,38 @@ from regrasp_drake.world.object_model import ObjectSpec
 LATTICE_ROWS = tuple(range(1, len(H_CATCH_VALUES), 2))   # 0.08 ... 0.40 m
 LATTICE_COLUMNS = tuple(range(1, len(H_DOWN_VALUES), 3))  # -0.13 ... -0.01 m
 LATTICE = [(i, j) for i in LATTICE_ROWS for j in LATTICE_COLUMNS]
+# The catch modes a rehearsal may compare: the palm waiting, or turning
+# with the object's pitch (catch.follow_pitch).
+MODES = ("plain", "pitch")
 
 
 @dc.dataclass(frozen=True)
 class Rehearsal:
     """A rehearsal's lattice map (rows × columns, True: in the target
-    grasp) and the cell it picks (None: no lattice cell lands in the
-    target grasp)."""
+    grasp) in the catch mode it picks, the cell it picks (None: no lattice
+    cell lands in the target grasp), and each mode's count of lattice cells
+    in the target."""
     in_target: np.ndarray
     cell: tuple[int, int] | None
+    mode: str = "plain"
+    counts: dict = dc.field(default_factory=dict)
 
     def as_dict(self) -> dict:
         return {"cell": None if self.cell is None else list(self.cell),
+                "mode": self.mode,
                 "in_target": int(self.in_target.sum()),
                 "of": int(self.in_target.size),
+                "by_mode": dict(self.counts),
                 "lattice": self.in_target.astype(int).tolist()}
+
+
+def mode_scenario(scenario: Scenario, mode: str) -> Scenario:
+    """`scenario` with the catch mode `mode` (one of MODES)."""
+    if mode not in MODES:
+        raise ValueError(f"mode: got {mode!r}, expected one of {MODES}")
+    out = copy.deepcopy(scenario)
+    out.catch.follow_pitch = mode == "pitch"
+    return out
 
 
 def rehearsal_scenario(scenario: Scenario) -> Scenario:
@@ -72,12 +99,31 @@ def rehearsal_scenario(scenario: Scenario) -> Scenario:
 
 
 def rehearse(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
-             plan: CatchPlan) -> Rehearsal:
+             plan: CatchPlan, modes=None) -> Rehearsal:
     """The catch under `plan` rehearsed at every LATTICE cell (see the
     module's docstring), its palm corrected at the rehearsed throw's release
     as the throw will correct it (throw_catch.release_correction); one
-    process."""
-    rehearsed = rehearsal_scenario(scenario)
+    process. `modes`: the catch modes compared (a subset of MODES; None:
+    the scenario's own only)."""
+    if not modes:
+        return _rehearse(rehearsal_scenario(scenario), obj, ik, plan)
+    rehearsals = {mode: dc.replace(_rehearse(rehearsal_scenario(
+        mode_scenario(scenario, mode)), obj, ik, plan), mode=mode)
+        for mode in modes}
+
+    def score(mode):
+        in_target = rehearsals[mode].in_target
+        return (int(robustness(in_target).max()), int(in_target.sum()),
+                mode == "plain")
+
+    best = max(modes, key=score)
+    return dc.replace(rehearsals[best], counts={
+        mode: int(r.in_target.sum()) for mode, r in rehearsals.items()})
+
+
+def _rehearse(rehearsed: Scenario, obj: ObjectSpec, ik: ArmIk,
+              plan: CatchPlan) -> Rehearsal:
+    """`rehearse` in the one catch mode of `rehearsed`."""
     throws = ThrowCache(size=1)
     episode = Episode(rehearsed, obj, ik=ik, X_WG=plan.X_WG,
                       catch_parameters=(0.0, 0.0), throws=throws)
@@ -85,10 +131,14 @@ def rehearse(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     release = episode.advance_to_release()
     corrected = release_correction(rehearsed, obj, ik, plan, (0.0, 0.0))(
         release.object_state, release.t)
-    X_WG = plan.X_WG if corrected is None else corrected[0]
+    if corrected is None:
+        X_WG = plan.X_WG
+        follow = plan_follow(rehearsed, obj, plan.catch_point, X_WG)
+    else:
+        X_WG, _, follow = corrected
     rows = run_cells(rehearsed, obj, ik=ik, X_WG=X_WG,
                      parameters=[cell_parameters(c) for c in LATTICE],
-                     workers=1, throws=throws)
+                     workers=1, throws=throws, follow=follow)
     in_target = np.array([r.success for r in rows]).reshape(
         len(LATTICE_ROWS), len(LATTICE_COLUMNS))
     best = label_cell(in_target)
