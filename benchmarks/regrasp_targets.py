@@ -229,9 +229,9 @@ def main(argv=None) -> int:
     parser.add_argument("--trials", type=int, default=1,
                         help="noise seeds per (object, target, mode)")
     parser.add_argument("--rehearse", action="store_true",
-                        help="first throws rehearse their catch at a lattice "
-                             "of cells before the throw and start from the "
-                             "most robust in the target grasp "
+                        help="the first catch is rehearsed at a lattice of "
+                             "cells in both catch modes before the throw and "
+                             "starts from the most robust in the target grasp "
                              "(learning/rehearsal.py)")
     parser.add_argument("--workers", type=int, default=1,
                         help="episodes run side by side in forked processes "

@@ -211,8 +211,9 @@ def learn(obj: ObjectSpec, *, scenario: Scenario | None = None,
     planner: who picks the search's first cell, "shipped" (the target's
     planner, models/planner_<target>.json's winner; the paper's network
     under `any`) or "paper" (the paper's network; docs/planner.md).
-    rehearse: with watch=False, the first catch is rehearsed in simulation
-    at a lattice of 25 cells before the throw and starts from the most
+    rehearse: the first catch (planned from the watched or the predicted
+    flight; not at_release) is rehearsed in simulation at a lattice of 25
+    cells in both catch modes before the throw and starts from the most
     robust one in the target grasp (learning/rehearsal.py; about a minute
     on two cores)."""
     if planner not in PLANNER_CHOICES:
@@ -222,6 +223,10 @@ def learn(obj: ObjectSpec, *, scenario: Scenario | None = None,
         raise InputError("at_release: got True with watch=True, expected "
                          "watch=False (a catch planned at each release makes "
                          "no watching throw)")
+    if rehearse and at_release:
+        raise InputError("rehearse: got True with at_release=True, expected "
+                         "at_release=False (it rehearses a catch planned "
+                         "before the throw)")
     _check_max_throws(max_throws, watch)
     scenario = _checked(scenario, obj, target)
     recording = _recording(meshcat, replay)

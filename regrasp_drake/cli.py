@@ -188,10 +188,12 @@ def _add_first_throw_args(p: argparse.ArgumentParser) -> None:
                    help="the flight predictor (default "
                         "models/flight_predictor.json)")
     p.add_argument("--rehearse", action="store_true",
-                   help="with --first-throw: rehearse the first catch in "
-                        "simulation at a lattice of 25 cells before the "
+                   help="rehearse the first catch in simulation at a "
+                        "lattice of 25 cells in both catch modes (the palm "
+                        "waiting or turning with the pitch) before the "
                         "throw and start from the most robust one in the "
-                        "target grasp (learning/rehearsal.py)")
+                        "target grasp (learning/rehearsal.py; not with "
+                        "--at-release)")
     p.add_argument("--at-release", action="store_true",
                    help="no watching throw: each throw plans its catch when "
                         "it releases the object, from the object's state "
@@ -239,10 +241,10 @@ def _check_first_throw_args(args) -> None:
     if args.first_throw and args.at_release:
         raise InputError("--at-release: got it with --first-throw, expected "
                          "one of the two first-throw modes")
-    if args.rehearse and not args.first_throw:
-        raise InputError("--rehearse: got it without --first-throw, expected "
-                         "it with --first-throw (it rehearses the catch "
-                         "planned from the predicted flight)")
+    if args.rehearse and args.at_release:
+        raise InputError("--rehearse: got it with --at-release, expected it "
+                         "without (it rehearses a catch planned before the "
+                         "throw)")
     least = 1 if args.first_throw or args.at_release else 2
     if args.max_throws is not None and args.max_throws < least:
         raise InputError(f"--max-throws: got {args.max_throws}, expected an "

@@ -128,6 +128,14 @@ class TestCli(unittest.TestCase):
                                  result.stderr)
                 self.assertIn("--at-release", result.stderr)
 
+    def test_a_rehearsal_refused_with_the_plan_at_release(self):
+        result = _run("learn", "--object", "table1-row2", "--at-release",
+                      "--rehearse")
+        self.assertEqual(result.returncode, 2)
+        self.assertEqual(len(result.stderr.strip().splitlines()), 1,
+                         result.stderr)
+        self.assertIn("--rehearse: got it with --at-release", result.stderr)
+
     def test_too_few_throws_refused_naming_the_flag(self):
         for command, args in (("learn", ["--object", "table1-row2"]),
                               ("table1", ["--no-maps"])):

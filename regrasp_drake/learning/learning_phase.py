@@ -195,7 +195,8 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
 
     flight_predictor: a learning.flight_predictor.FlightPredictor for the
     first-throw mode (no watching throw), or None. rehearse: with it, the
-    first catch is rehearsed in simulation before the throw at a lattice of
+    first catch (planned from the watched or the predicted flight; not
+    `at_release`) is rehearsed in simulation before the throw at a lattice of
     cells in each catch mode (the palm waiting, or turning with the
     object's pitch) and starts from the most robust one in the target grasp,
     in that cell's mode (learning/rehearsal.py; a chooser of its own,
@@ -217,7 +218,7 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
                    on_episode=on_episode, progress=progress,
                    offset_prior=offset_prior,
                    planner=planner or load_planner(target_of(scenario)),
-                   rehearse=rehearse and flight_predictor is not None)
+                   rehearse=rehearse and not at_release)
     # Throw 1 watches (or the flight is predicted); the offline stage plans
     # the catch and the network's cell starts the search. At release, throw
     # 1 plans its own catch, and starts the search, when it lets go.

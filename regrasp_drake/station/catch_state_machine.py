@@ -25,6 +25,12 @@ Phases, in order:
           cushion, rather than stopping dead under it);
   HOLD    the hand holds the object there.
 
+With a follow (the `palm_follow` input: the catch moment and the palm's
+twist there, planning/follow.py; zeros, none), the arm's references from
+the move on carry the follow's offset G(t) q̇_f as well: the palm moves
+with the object in its plane and turns with its pitch over the contact,
+then comes back to the grasp pose.
+
 The arm is commanded in joint space: every phase is a segment from q_a to q_b
 with a quintic time law (zero end velocity and acceleration), except the
 throw, which follows a C2 cubic spline through the scenario's knots (or the
