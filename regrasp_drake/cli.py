@@ -755,6 +755,16 @@ def _interrupted_in_a_worker(signum, frame):
     os._exit(130)
 
 
+def _quiet_lost_interrupt(unraisable) -> None:
+    """sys.unraisablehook while the command runs: a KeyboardInterrupt that
+    Python could not raise (Ctrl-C in a hook that ignores exceptions, such
+    as logging's at-fork lock release) is not printed: note_interrupt
+    recorded it, and check_interrupt raises it again at the next safe
+    point, so the command still reports it in one line."""
+    if not issubclass(unraisable.exc_type, KeyboardInterrupt):
+        sys.__unraisablehook__(unraisable)
+
+
 def main(argv=None) -> int:
     args = make_parser().parse_args(argv)
     main_pid = os.getpid()
@@ -767,8 +777,10 @@ def main(argv=None) -> int:
 
     note_interrupt(False)
     previous = signal.getsignal(signal.SIGINT)
+    previous_hook = sys.unraisablehook
     if previous is signal.default_int_handler:
         signal.signal(signal.SIGINT, on_sigint)
+        sys.unraisablehook = _quiet_lost_interrupt
     try:
         if (args.command != "objects" and "object_file" in vars(args)
                 and args.object is None and args.object_file is None):
@@ -805,6 +817,7 @@ def main(argv=None) -> int:
     finally:
         if previous is signal.default_int_handler:
             signal.signal(signal.SIGINT, previous)
+            sys.unraisablehook = previous_hook
 
 
 if __name__ == "__main__":
