@@ -44,6 +44,7 @@ import numpy as np
 from pydrake.multibody.tree import JacobianWrtVariable
 
 from regrasp_drake.planning.ik import ArmIk
+from regrasp_drake.planning.time_law import quintic
 from regrasp_drake.station.scenario import target_of
 from regrasp_drake.world.robot import ARM_EFFORT_LIMITS
 
@@ -58,15 +59,13 @@ NO_FOLLOW = np.zeros(FOLLOW_SIZE)
 
 
 def _smooth(u):
-    """s, s', s'' of the quintic smoothstep and its integral S (S(1) = 1/2),
-    at u clipped to [0, 1] (a number or an array)."""
+    """s, s', s'' of the quintic smoothstep (time_law.quintic) and its
+    integral S (S(1) = 1/2), at u clipped to [0, 1] (a number or an
+    array)."""
+    s, ds, dds = quintic(u)
     u = np.clip(u, 0.0, 1.0)
     u2 = u * u
-    s = u2 * u * (10.0 - 15.0 * u + 6.0 * u2)
-    ds = 30.0 * u2 * (1.0 - u) ** 2
-    dds = 60.0 * u * (1.0 - u) * (1.0 - 2.0 * u)
-    S = u2 * u2 * (2.5 - 3.0 * u + u2)
-    return s, ds, dds, S
+    return s, ds, dds, u2 * u2 * (2.5 - 3.0 * u + u2)
 
 
 @dc.dataclass(frozen=True)
