@@ -3,12 +3,13 @@ catch's time step? A target data set's maps computed again at a finer step,
 and the planner's judging scored on both.
 
     .venv/bin/python benchmarks/planner_convergence.py --target flip+0
-        [--objects NAME ...] [--steps-ms 0.25 [0.125 ...]] [--workers 2]
+        [--objects NAME ... | --each N] [--steps-ms 0.25 [0.125 ...]] [--workers 2]
         [--out models/results/planner_convergence_flip+0.json]
 
 For the target's data set (models/dataset_<target>, made at the shipped
 1 ms catch step) and the chosen objects (default: the first 11 maps the
-best constant cell fails, and as many it holds, in the data set's order):
+best constant cell fails, and as many it holds, in the data set's order;
+--each N for N of each):
 the same entries computed again with only the catch's time step changed
 (`dataset.generate` on the data set's own scenario; resumable, in
 out/planner_convergence/<target>_<step>ms/, for each finer step). Then
@@ -113,6 +114,10 @@ def main(argv=None) -> int:
     parser.add_argument("--target", default="flip+0",
                         help="a target data set in models/ (flip+0, keep-30, ...)")
     parser.add_argument("--objects", nargs="+", metavar="NAME")
+    parser.add_argument("--each", type=int, default=DEFAULT_EACH,
+                        metavar="N", help="without --objects: the first N "
+                        "maps the best constant cell fails and as many it "
+                        f"holds (default {DEFAULT_EACH})")
     parser.add_argument("--steps-ms", type=float, nargs="+", default=[0.25],
                         metavar="MS", help="finer catch steps than 1 ms")
     parser.add_argument("--designs", nargs="+", metavar="YAML",
@@ -130,6 +135,9 @@ def main(argv=None) -> int:
         if not (data_dir / "maps.npz").exists():
             raise InputError(f"--target: {args.target!r}: no data set "
                              f"{data_dir}, expected one of models/dataset_*")
+        if args.each < 1:
+            raise InputError(f"--each: got {args.each}, expected an "
+                             "integer >= 1")
         if args.workers < 1:
             raise InputError(f"--workers: got {args.workers}, expected an "
                              "integer >= 1")
@@ -150,7 +158,7 @@ def main(argv=None) -> int:
                 raise InputError(f"--steps-ms: got {step}, expected steps at "
                                  f"least the throw's plant step, {throw_ms:g} ms")
         data = PlannerData.load(data_dir)
-        names = args.objects or default_objects(data)
+        names = args.objects or default_objects(data, args.each)
         unknown = sorted(set(names) - set(data.objects))
         if unknown:
             raise InputError(f"--objects: {unknown[0]!r} has no map in "

@@ -5,13 +5,14 @@ against them.
     .venv/bin/python benchmarks/static_hold.py [--objects NAME ...]
         [--targets keep:-30 ...] [--steps 0.001 0.00025] [--workers N]
         [--out models/results/landing_step/static_hold_closings]
-        [--first-throw ROWS.jsonl ...]
+        [--first-throw ROWS.jsonl ...] [--closings NAME ...]
 
 For every reachable (object, target) pair (default: Table 1's five and the
 held-out objects under keep/flip at -30, 0, +30 mm) and plant step, the
 static test of episode/static_hold.py (the object laid at rest in the target
 grasp on the open hand, the fingers closed at the catch's speed, held 1 s;
-each of its closings in turn until one holds): held in the target grasp,
+each of its closings in turn until one holds; --closings: the named ones
+of static_hold.CLOSINGS and ORDERED_CLOSINGS instead): held in the target grasp,
 by which closing, or why not. Rows go to <out>.jsonl as they finish
 (a rerun resumes); the counts, the pairs each step refuses and the two
 steps' agreement to <out>.json, and printed. With --first-throw (rows of
@@ -31,7 +32,11 @@ import sys
 from pathlib import Path
 
 from regrasp_drake import atomic_io
-from regrasp_drake.episode.static_hold import static_hold
+from regrasp_drake.episode.static_hold import (
+    CLOSINGS,
+    closing_named,
+    static_hold,
+)
 from regrasp_drake.errors import InputError
 from regrasp_drake.grid import append_rows
 from regrasp_drake.learning.table1 import object_names
@@ -51,9 +56,10 @@ def _key(row) -> tuple:
 
 
 def _job(task) -> dict:
-    name, target, step = task
+    name, target, step, closings = task
     scenario = with_target(load_scenario(), target)
-    test = static_hold(scenario, resolve_object(name=name), step_s=step)
+    test = static_hold(scenario, resolve_object(name=name), step_s=step,
+                       closings=closings)
     return {"object": name, "target": target.as_dict(), "step_s": step,
             "success": test.success, "held": test.held,
             "reason": test.reason, "rest": test.rest, "closed": test.closed,
@@ -112,12 +118,17 @@ def main(argv=None) -> int:
                         default=MODELS_DIR / "results" / "landing_step"
                         / "static_hold_closings")
     parser.add_argument("--first-throw", nargs="*", type=Path, default=[])
+    parser.add_argument("--closings", nargs="+", metavar="NAME",
+                        help="only these closings, in turn (default: "
+                        "static_hold.CLOSINGS)")
     args = parser.parse_args(argv)
     try:
         if args.workers < 1:
             raise InputError(f"--workers: got {args.workers}, expected an "
                              "integer >= 1")
         targets = [Target.parse(t) for t in args.targets]
+        closings = (tuple(closing_named(n) for n in args.closings)
+                    if args.closings else CLOSINGS)
         names = args.objects or object_names() + [
             o.name for o in load_catalogue().values() if o.set == "holdout"]
         first_throw = {str(p): read_rows(p, key=lambda r: (
@@ -134,7 +145,7 @@ def main(argv=None) -> int:
                 pairs.append((name, target))
         rows_path = args.out.with_suffix(".jsonl")
         done = read_rows(rows_path, key=_key)
-        jobs = [(name, target, step) for step in args.steps
+        jobs = [(name, target, step, closings) for step in args.steps
                 for name, target in pairs
                 if (name, target.kind, target.offset_mm, step) not in done]
     except InputError as e:

@@ -23,7 +23,10 @@ class CatchFieldsTest(unittest.TestCase):
                 ("{catch: {preshape_distal_closure: x}}",
                  "catch.preshape_distal_closure: got 'x', expected a number"),
                 ("{catch: {return_from_motion: 2}}",
-                 "catch.return_from_motion: got 2, expected true or false")):
+                 "catch.return_from_motion: got 2, expected true or false"),
+                ("{catch: {closing_order: thumb}}",
+                 "catch.closing_order: got 'thumb', expected one of "
+                 "['together', 'thumb_first', 'fingers_first']")):
             with self.subTest(text=text):
                 with self.assertRaises(InputError) as e:
                     load_scenario(text=text)
@@ -46,6 +49,44 @@ class CatchFieldsTest(unittest.TestCase):
         for i, joint in enumerate(robot.HAND_JOINTS):
             self.assertEqual(closures[i], 0.2 if joint.endswith("_j2") else 0.5,
                              joint)
+
+
+class ClosingOrderTest(unittest.TestCase):
+    """catch.closing_order: from the cage the palm toss pre-shapes, the
+    joints that wait start as the others arrive, each at full speed;
+    "together" is the ramp without delays."""
+
+    def _ramps(self, order):
+        s = load_scenario(text=f"{{catch: {{closing_order: {order}}}}}")
+        machine = csm.CatchStateMachine(
+            s, ArmIk(), robot.HAND_OPEN, robot.HAND_CLOSED,
+            robot.FINGER_MAX_SPEED, park_q=np.zeros(6))
+        self.cage = csm.preshape_posture(s.catch, robot.HAND_OPEN,
+                                         robot.HAND_CLOSED)
+        return machine._preshape_to_closed
+
+    def test_the_thumb_first_then_the_fingers(self):
+        together, thumb_first, fingers_first = (
+            self._ramps(o) for o in ("together", "thumb_first",
+                                     "fingers_first"))
+        self.assertIsNone(together.delay)
+        thumb = np.array([j.startswith("thumb_") for j in robot.HAND_JOINTS])
+        t_thumb = together.duration  # every joint travels as far
+        self.assertAlmostEqual(thumb_first.duration, 2 * t_thumb)
+        half = 0.5 * t_thumb
+        for ramp, moving in ((together, np.ones(10, bool)),
+                             (thumb_first, thumb), (fingers_first, ~thumb)):
+            q, v = ramp.at(half)
+            np.testing.assert_array_equal(v != 0.0, moving)
+            np.testing.assert_allclose(q[moving], together.at(half)[0][moving])
+            np.testing.assert_array_equal(q[~moving], self.cage[~moving])
+        # The others start as the first arrive; all closed at the end.
+        q, v = thumb_first.at(t_thumb + half)
+        np.testing.assert_allclose(q[~thumb], together.at(half)[0][~thumb])
+        np.testing.assert_array_equal(q[thumb], robot.HAND_CLOSED[thumb])
+        q, v = fingers_first.at(2 * t_thumb)
+        np.testing.assert_array_equal(q, robot.HAND_CLOSED)
+        np.testing.assert_array_equal(v, np.zeros(10))
 
 
 class CushionedReturnTest(unittest.TestCase):

@@ -304,6 +304,7 @@ class DigestTest(unittest.TestCase):
                 "{plant_config: {stiction_tolerance: 0.0002}}",
                 "{simulator_config: {accuracy: 0.001}}",
                 "{catch: {preshape_distal_closure: 0.4}}",
+                "{catch: {closing_order: thumb_first}}",
                 "{throw: {toss: {spin_rad_per_s: 5.4}}}",
                 "{regrasp: {target: keep}}"):
             digests.add(scenario_digest(load_scenario(text=text)))
@@ -311,12 +312,13 @@ class DigestTest(unittest.TestCase):
         X_PC = moved.directives[3].add_weld.X_PC
         X_PC.translation = X_PC.translation + [0.0, 0.0, 1e-9]
         digests.add(scenario_digest(moved))
-        self.assertEqual(len(digests), 7)
+        self.assertEqual(len(digests), 8)
         # What is kept is the YAML's digest (with no target, without the
-        # landing's fields, which only a target reads).
+        # landing's fields, which only a target reads, and without the
+        # fingers' closing order at its default).
         text = scenario_yaml(moved)
         self.assertEqual(scenario_digest(moved), hashlib.sha256(re.sub(
-            r"(?m)^  follow_\w+: .*\n", "", re.sub(
+            r"(?m)^  (follow_\w+|closing_order): .*\n", "", re.sub(
                 r"(?m)^(landing_\w+|target_catch_time_step_s): .*\n", "",
                 text[:text.rindex("regrasp:\n")])
         ).encode()).hexdigest()[:16])

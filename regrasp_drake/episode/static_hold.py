@@ -33,6 +33,7 @@ from regrasp_drake.planning.catch_plan import lowest_point_along
 from regrasp_drake.station import throw
 from regrasp_drake.station.catch_state_machine import (
     FingerRamp,
+    closing_delays,
     preshape_posture,
 )
 from regrasp_drake.station.grasp_monitor import contact_verdict
@@ -52,11 +53,15 @@ from regrasp_drake.world.object_model import ObjectSpec
 class Closing:
     """How the hand closes on the laid object: where across the palm it
     lies (toward the fingertips, [m]; None: where the catch's palm pose puts
-    it, catch.palm_toward_fingers_m) and whether the fingers start from the
-    catch's pre-shape (catch.preshape_closure) instead of open."""
+    it, catch.palm_toward_fingers_m), whether the fingers start from the
+    catch's pre-shape (catch.preshape_closure) instead of open, in which
+    order they close (catch_state_machine.CLOSING_ORDERS) and at what
+    fraction of their speed."""
     name: str
     across_m: float | None = None
     from_preshape: bool = False
+    order: str = "together"
+    speed_fraction: float = 1.0
 
 
 # The closings tried, in turn, until one holds.
@@ -64,6 +69,27 @@ CLOSINGS = (Closing("open, at the catch's place"),
             Closing("pre-shaped, at the catch's place", from_preshape=True),
             Closing("open, centred", across_m=0.0),
             Closing("open, 20 mm toward the fingertips", across_m=0.02))
+# Closings by order and speed (studies/closing_order), tried on demand.
+ORDERED_CLOSINGS = (
+    Closing("open, thumb first, at the catch's place", order="thumb_first"),
+    Closing("open, fingers first, at the catch's place",
+            order="fingers_first"),
+    Closing("open, half speed, at the catch's place", speed_fraction=0.5),
+    Closing("pre-shaped, thumb first, at the catch's place",
+            from_preshape=True, order="thumb_first"),
+    Closing("pre-shaped, fingers first, at the catch's place",
+            from_preshape=True, order="fingers_first"),
+    Closing("pre-shaped, half speed, at the catch's place",
+            from_preshape=True, speed_fraction=0.5))
+
+
+def closing_named(name: str) -> Closing:
+    """The closing of CLOSINGS or ORDERED_CLOSINGS called `name`."""
+    for closing in CLOSINGS + ORDERED_CLOSINGS:
+        if closing.name == name:
+            return closing
+    raise InputError(f"closing: got {name!r}, expected one of "
+                     f"{[c.name for c in CLOSINGS + ORDERED_CLOSINGS]}")
 
 
 @dc.dataclass(frozen=True)
@@ -103,18 +129,19 @@ class StaticHold:
 
 def static_hold(scenario: Scenario, obj: ObjectSpec,
                 target: grasp.Target | None = None, *, hold_s: float = 1.0,
-                step_s: float | None = None) -> StaticHold:
+                step_s: float | None = None,
+                closings: tuple = CLOSINGS) -> StaticHold:
     """The static test of `obj` in `target` (None: the scenario's), at the
     plant step `step_s` (None: the catch's; no impact to resolve, the
     contacts slow: benchmarks/static_hold.py checks it at the landing's),
-    with each of CLOSINGS in turn until one holds. Computed once per
+    with each of `closings` in turn until one holds. Computed once per
     scenario, object, target and step in a process (STATIC_HOLDS)."""
     target = target or target_of(scenario)
     key = (scenario_digest(scenario), pickle.dumps(obj), target, hold_s,
-           step_s)
+           step_s, closings)
 
     def compute():
-        for n, closing in enumerate(CLOSINGS, 1):
+        for n, closing in enumerate(closings, 1):
             test = dc.replace(_static_hold(scenario, obj, target, hold_s,
                                            step_s, closing),
                               closing=closing.name, tried=n)
@@ -202,12 +229,14 @@ def _static_hold(scenario, obj, target, hold_s, step_s,
     q_from = (preshape_posture(scenario.catch, q_open, q_closed)
               if closing.from_preshape else q_open)
     plant.SetPositions(pc, instances.hand, q_from)
-    ramp = FingerRamp(q_from, q_closed, robot.FINGER_MAX_SPEED)
+    speed = closing.speed_fraction * robot.FINGER_MAX_SPEED
+    ramp = FingerRamp(q_from, q_closed, speed, delay=closing_delays(
+        closing.order, q_from, q_closed, speed))
     simulator.Initialize()
     # The fingers' reference, from open to closed at their speed as the
     # catch ramps it, set every sensor period (the catch's update rate).
     period = scenario.sensors.period_s
-    closing_s = ramp.longest / ramp.speed
+    closing_s = ramp.duration
     for k in range(int(np.ceil((closing_s + hold_s) / period))):
         desired.FixValue(pc, np.concatenate(ramp.at(k * period)))
         simulator.AdvanceTo((k + 1) * period)

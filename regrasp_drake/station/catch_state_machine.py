@@ -82,7 +82,7 @@ from regrasp_drake.planning.time_law import ease_in, quintic, quintic_from
 from regrasp_drake.station.palm_toss import TossDesign, toss_trajectory
 from regrasp_drake.station.scenario import lowers_moving
 from regrasp_drake.station.throw import end_s, free_time_s, let_go_time_s
-from regrasp_drake.world.robot import HAND_JOINTS
+from regrasp_drake.world.robot import CLOSING_ORDERS, HAND_JOINTS
 
 
 class Phase(enum.IntEnum):
@@ -198,29 +198,59 @@ def preshape_posture(catch, hand_open, hand_closed) -> np.ndarray:
         np.asarray(hand_closed, float) - hand_open)
 
 
-class FingerRamp:
-    """The fingers from q_from toward q_to at their speed (rad/s), with
-    what depends on the two postures only made once."""
+def closing_delays(order: str, q_from, q_to, speed) -> np.ndarray | None:
+    """Each hand joint's start delay, [s], for the fingers to close from
+    q_from to q_to at `speed` in `order` (CLOSING_ORDERS); None: together.
+    The ones that wait start as the others arrive."""
+    if order == "together":
+        return None
+    if order not in CLOSING_ORDERS:
+        raise ValueError(f"closing order: got {order!r}, expected one of "
+                         f"{CLOSING_ORDERS}")
+    time = np.abs(np.asarray(q_to, float) - np.asarray(q_from, float)) / speed
+    thumb = np.array([j.startswith("thumb_") for j in HAND_JOINTS])
+    first = thumb if order == "thumb_first" else ~thumb
+    delay = np.zeros(len(HAND_JOINTS))
+    delay[~first] = np.max(time[first])
+    return delay
 
-    def __init__(self, q_from, q_to, speed):
+
+class FingerRamp:
+    """The fingers from q_from toward q_to at their speed (rad/s), each
+    joint starting `delay` s after the ramp's start (per joint; None: all at
+    once), with what depends on the two postures only made once."""
+
+    def __init__(self, q_from, q_to, speed, delay=None):
         delta = q_to - q_from
         self.q_from, self.q_to, self.speed = q_from, q_to, speed
         self.distance = np.abs(delta)
         self.longest = np.max(self.distance)
         self.sign = np.sign(delta)
         self.velocity = self.sign * speed
+        self.delay = None if delay is None else np.asarray(delay, float)
+        # How long until every joint has arrived, [s].
+        self.duration = float(np.max(
+            self.distance / speed + (0.0 if delay is None else self.delay)))
 
     def at(self, elapsed):
         """(q, v) `elapsed` s after the start (a number, or a column of k:
         k × n arrays)."""
-        arrived = self.speed * elapsed >= self.longest
+        shape = np.shape(elapsed)[:1] + self.q_to.shape
+        if self.delay is not None:
+            # Each joint's own time since it started (n, or k × n).
+            elapsed = np.asarray(elapsed, float) - self.delay
+            arrived = self.speed * elapsed >= self.distance
+        else:
+            arrived = self.speed * elapsed >= self.longest
         if np.all(arrived):
-            shape = np.shape(elapsed)[:1] + self.q_to.shape
             return np.broadcast_to(self.q_to, shape), np.zeros(shape)
         travel = np.minimum(self.distance,
                             self.speed * np.maximum(elapsed, 0.0))
         q = self.q_from + self.sign * travel
-        v = np.where(self.distance > travel, self.velocity, 0.0)
+        moving = self.distance > travel
+        if self.delay is not None:
+            moving = moving & (elapsed >= 0.0)
+        v = np.where(moving, self.velocity, 0.0)
         return np.where(arrived, self.q_to, q), np.where(arrived, 0.0, v)
 
 
@@ -258,12 +288,17 @@ class CatchStateMachine(LeafSystem):
                                    finger_speed_rad_per_s)
         self._hold_to_open = FingerRamp(self._hold, self._open,
                                    finger_speed_rad_per_s)
-        self._open_to_closed = FingerRamp(self._open, self._closed,
-                                     finger_speed_rad_per_s)
+        order = scenario.catch.closing_order
+        self._open_to_closed = FingerRamp(
+            self._open, self._closed, finger_speed_rad_per_s,
+            delay=closing_delays(order, self._open, self._closed,
+                                 finger_speed_rad_per_s))
         self._open_to_preshape = FingerRamp(self._open, self._preshape,
                                        finger_speed_rad_per_s)
-        self._preshape_to_closed = FingerRamp(self._preshape, self._closed,
-                                         finger_speed_rad_per_s)
+        self._preshape_to_closed = FingerRamp(
+            self._preshape, self._closed, finger_speed_rad_per_s,
+            delay=closing_delays(order, self._preshape, self._closed,
+                                 finger_speed_rad_per_s))
         self._cushion = scenario.catch.return_from_motion
         self._follow_law = FollowLaw.of(scenario.catch)
         self._lower_along_normal = follows(scenario)[0]

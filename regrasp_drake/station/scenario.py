@@ -276,6 +276,12 @@ class CatchConfig:
     # the knuckles (preshape_closure). Knuckles flexed more than the distal
     # joints stand the fingers up as walls with their tips over the palm.
     preshape_distal_closure: typing.Optional[float] = None
+    # The order the fingers close in once the catch triggers: "together"
+    # (the paper's), "thumb_first" (the others start as the thumb arrives)
+    # or "fingers_first" (the thumb starts as the others arrive); each
+    # joint at its full speed (studies/landing_step/FINDINGS.md, the
+    # closing's order).
+    closing_order: str = "together"
     # Speed at which the hand is lowered by |h_down|, [m/s].
     lower_speed_m_per_s: float = 1.0
     # Lowering stops when a palm infrared sensor reads below this, [level]
@@ -756,6 +762,9 @@ def scenario_digest(scenario: Scenario) -> str:
                 text[:text.rindex("regrasp:\n")])
             # Nor the follow's, which is off under "any".
             text = re.sub(r"(?m)^  follow_\w+: .*\n", "", text)
+        # The fingers' closing order at its default, "together", digests
+        # as before the field existed, under any target.
+        text = text.replace("\n  closing_order: together\n", "\n")
         return hashlib.sha256(text.encode()).hexdigest()[:16]
     # NumPy's arrays (Drake's transforms in the directives) in full: every
     # float as the shortest text that reads back the same, none elided.

@@ -19,6 +19,7 @@ from regrasp_drake.parameter_space import H_CATCH_RANGE, H_DOWN_RANGE
 from regrasp_drake.planning.grasp import OFFSET_LIMIT_MM, TARGET_KINDS
 from regrasp_drake.world.robot import (
     ARM_MODEL_NAME,
+    CLOSING_ORDERS,
     HAND_MODEL_NAME,
     arm_joint_limits,
 )
@@ -209,6 +210,9 @@ def _check_catch(s) -> None:
     if k.preshape_distal_closure is not None:
         _in_range("catch.preshape_distal_closure", k.preshape_distal_closure,
                   0.0, 0.8)
+    if k.closing_order not in CLOSING_ORDERS:
+        raise field_error("catch.closing_order", k.closing_order,
+                          f"one of {list(CLOSING_ORDERS)}")
     _in_range("catch.lower_speed_m_per_s", k.lower_speed_m_per_s, 0.01, 5.0,
               " m/s")
     _in_range("catch.palm_stop_level", k.palm_stop_level, 0, n.levels)

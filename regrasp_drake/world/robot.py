@@ -42,6 +42,9 @@ ARM_EFFORT_LIMITS = np.array([150.0, 186.4, 89.4, 24.2, 20.1, 21.3])
 FINGERS = ("thumb", "index", "middle", "ring", "little")
 # Joint names in the order of the hand's actuators: knuckle (j1) then distal (j2).
 HAND_JOINTS = tuple(f"{f}_j{k}" for f in FINGERS for k in (1, 2))
+# The orders the fingers can close in (catch.closing_order): all at once,
+# the thumb's two joints before the other fingers start, or after they end.
+CLOSING_ORDERS = ("together", "thumb_first", "fingers_first")
 # The bodies of each finger, proximal first.
 FINGER_LINKS = {f: (f"{f}_proximal", f"{f}_distal") for f in FINGERS}
 # The arm's bodies, base first (puma560.sdf).
