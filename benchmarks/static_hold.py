@@ -12,7 +12,7 @@ held-out objects under keep/flip at -30, 0, +30 mm) and plant step, the
 static test of episode/static_hold.py (the object laid at rest in the target
 grasp on the open hand, the fingers closed at the catch's speed, held 1 s;
 each of its closings in turn until one holds; --closings: the named ones
-of static_hold.CLOSINGS and ORDERED_CLOSINGS instead): held in the target grasp,
+of static_hold.CLOSINGS instead, each alone when given one): held in the target grasp,
 by which closing, or why not. Rows go to <out>.jsonl as they finish
 (a rerun resumes); the counts, the pairs each step refuses and the two
 steps' agreement to <out>.json, and printed. With --first-throw (rows of

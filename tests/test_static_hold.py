@@ -54,7 +54,7 @@ class StaticHoldTest(unittest.TestCase):
         line = err.getvalue().strip()
         self.assertEqual(len(line.splitlines()), 1)
         self.assertIn("object table1-row1, target flip, -30 mm: no closing "
-                      "of the hand holds it at rest (4 tried", line)
+                      "of the hand holds it at rest (10 tried", line)
         self.assertIn("regrasp.check_hold", line)
 
     def test_tested_only_when_asked_and_never_for_any(self):

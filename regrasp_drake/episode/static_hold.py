@@ -10,7 +10,8 @@ object must be held by the contacts (the thumb and another finger, no
 slip: grasp_monitor.contact_verdict) in the target grasp
 (planning/grasp.judge). How the hand closes is tried several ways
 (`CLOSINGS`: where across the palm the object lies, whether the fingers
-start from the catch's pre-shape); a target no closing holds is one the
+start from the catch's pre-shape, the order and speed they close in); a
+target no closing holds is one the
 catch cannot end in whatever it does before the fingers close
 (`check_holdable` refuses it before the throw, when the scenario asks).
 No throw, no landing: what it tests is the closing alone.
@@ -64,32 +65,33 @@ class Closing:
     speed_fraction: float = 1.0
 
 
+# Where across the palm the object lies and whether the fingers start from
+# the pre-shape, all closing together at full speed.
+PLACED_CLOSINGS = (
+    Closing("open, at the catch's place"),
+    Closing("pre-shaped, at the catch's place", from_preshape=True),
+    Closing("open, centred", across_m=0.0),
+    Closing("open, 20 mm toward the fingertips", across_m=0.02))
+# The orders and speeds the fingers can close in (catch.closing_order; half
+# speed as a check that the servos' speed is not what drops the object).
+ORDERED_CLOSINGS = tuple(
+    Closing(f"{start}, {how}, at the catch's place", from_preshape=pre,
+            order=order, speed_fraction=speed)
+    for start, pre in (("open", False), ("pre-shaped", True))
+    for how, order, speed in (("thumb first", "thumb_first", 1.0),
+                              ("fingers first", "fingers_first", 1.0),
+                              ("half speed", "together", 0.5)))
 # The closings tried, in turn, until one holds.
-CLOSINGS = (Closing("open, at the catch's place"),
-            Closing("pre-shaped, at the catch's place", from_preshape=True),
-            Closing("open, centred", across_m=0.0),
-            Closing("open, 20 mm toward the fingertips", across_m=0.02))
-# Closings by order and speed (studies/closing_order), tried on demand.
-ORDERED_CLOSINGS = (
-    Closing("open, thumb first, at the catch's place", order="thumb_first"),
-    Closing("open, fingers first, at the catch's place",
-            order="fingers_first"),
-    Closing("open, half speed, at the catch's place", speed_fraction=0.5),
-    Closing("pre-shaped, thumb first, at the catch's place",
-            from_preshape=True, order="thumb_first"),
-    Closing("pre-shaped, fingers first, at the catch's place",
-            from_preshape=True, order="fingers_first"),
-    Closing("pre-shaped, half speed, at the catch's place",
-            from_preshape=True, speed_fraction=0.5))
+CLOSINGS = PLACED_CLOSINGS + ORDERED_CLOSINGS
 
 
 def closing_named(name: str) -> Closing:
-    """The closing of CLOSINGS or ORDERED_CLOSINGS called `name`."""
-    for closing in CLOSINGS + ORDERED_CLOSINGS:
+    """The closing of CLOSINGS called `name`."""
+    for closing in CLOSINGS:
         if closing.name == name:
             return closing
     raise InputError(f"closing: got {name!r}, expected one of "
-                     f"{[c.name for c in CLOSINGS + ORDERED_CLOSINGS]}")
+                     f"{[c.name for c in CLOSINGS]}")
 
 
 @dc.dataclass(frozen=True)
