@@ -19,7 +19,7 @@ from regrasp_drake.errors import InputError
 from regrasp_drake.learning.dataset import generate, generate_targets
 from regrasp_drake.learning.dataset_files import FEATURE_NAMES, load_map
 from regrasp_drake.learning.labels import SHAPE, label_cell, robustness
-from regrasp_drake.learning.provenance import scenario_text
+from regrasp_drake.learning.provenance import check_same_scenario, scenario_text
 from regrasp_drake.planning.grasp import Target
 from regrasp_drake.station.scenario import (
     load_scenario,
@@ -284,6 +284,20 @@ class GenerateTest(unittest.TestCase):
                     f"--scenario: monitor.hold_s is 0.5 here but 0.25 in the "
                     f"data set in {out}")
         self.assertFalse((self.root / "serial" / "scenario.yaml").exists())
+
+    def test_a_field_added_since_at_its_former_behaviour_resumes(self):
+        # A set started before catch.closing_order existed (its text
+        # without the field) resumes under "together", which digests and
+        # behaves as before; another order is another scenario.
+        started = self.root / "started_before"
+        started.mkdir()
+        (started / "scenario.yaml").write_text(
+            scenario_text().replace("  closing_order: together\n", ""))
+        check_same_scenario(started)
+        with self.assertRaisesRegex(InputError, "catch.closing_order is "
+                                    "'thumb_first' here but None"):
+            check_same_scenario(started, load_scenario(
+                text="{catch: {closing_order: thumb_first}}"))
 
     def test_two_catch_points_per_object(self):
         """--catch-points 2: a second entry per object, planned at another

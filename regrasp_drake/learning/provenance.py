@@ -13,7 +13,11 @@ from regrasp_drake.errors import InputError
 from regrasp_drake.input_files import parse_yaml, read_text
 from regrasp_drake.learning.dataset_files import load_provenance
 from regrasp_drake.paths import PACKAGE_DIR, REPO_DIR, SDF_DIR
-from regrasp_drake.station.scenario import load_scenario, scenario_yaml
+from regrasp_drake.station.scenario import (
+    load_scenario,
+    scenario_digest,
+    scenario_yaml,
+)
 
 # The robot's model files (the arm, the hand and their directives), which
 # the scenario names by path only: a data set records their digest.
@@ -43,8 +47,11 @@ def check_same_scenario(out_dir: Path, scenario=None) -> None:
     has finished, in its scenario.yaml (written here for a new data set).
     Another one is refused (InputError naming --scenario and the first
     field that differs): resuming would mix two scenarios' maps under one
-    provenance. So are other robot model files (sdf/, which the scenario
-    names by path only), when the data set recorded their digest."""
+    provenance. A text written before a field existed is the same scenario
+    when its digest is (scenario_digest leaves out a field at the value that
+    behaves as before it, e.g. catch.closing_order "together"). So are other
+    robot model files (sdf/, which the scenario names by path only), when
+    the data set recorded their digest."""
     _check_same_models(out_dir)
     current = scenario_text(scenario)
     provenance, started = out_dir / "provenance.json", out_dir / "scenario.yaml"
@@ -63,7 +70,7 @@ def check_same_scenario(out_dir: Path, scenario=None) -> None:
         out_dir.mkdir(parents=True, exist_ok=True)
         atomic_io.write_text(started, current)
         return
-    if stored != current:
+    if stored != current and not _same_digest(stored, scenario):
         try:
             a = parse_yaml(stored, tags=True)
         except InputError as e:
@@ -76,6 +83,16 @@ def check_same_scenario(out_dir: Path, scenario=None) -> None:
             f"--scenario: {field} is {new!r} here but {old!r} in the data set "
             f"in {out_dir} (computed with another scenario), expected the "
             "same scenario to resume it, or another --out")
+
+
+def _same_digest(stored: str, scenario) -> bool:
+    """Whether the scenario text `stored` digests as `scenario` (None: the
+    shipped one); False when it no longer loads."""
+    try:
+        then = load_scenario(text=stored)
+    except InputError:
+        return False
+    return scenario_digest(then) == scenario_digest(scenario or load_scenario())
 
 
 def _check_same_models(out_dir: Path) -> None:
