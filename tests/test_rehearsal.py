@@ -44,8 +44,10 @@ class RehearsalScenarioTest(unittest.TestCase):
 
     def test_the_modes(self):
         scenario = load_scenario()
-        self.assertTrue(mode_scenario(scenario, "pitch").catch.follow_pitch)
-        self.assertFalse(mode_scenario(scenario, "plain").catch.follow_pitch)
+        for mode in MODES:
+            catch = mode_scenario(scenario, mode).catch
+            self.assertEqual((catch.follow_pitch, catch.follow_along),
+                             (mode == "pitch", mode == "along"), mode)
         with self.assertRaisesRegex(ValueError, "mode: got 'spin'"):
             mode_scenario(scenario, "spin")
 
@@ -64,7 +66,7 @@ class RehearsedFirstThrowTest(unittest.TestCase):
                        rehearse=True)
         rehearsal = result.rehearsal
         self.assertIsNotNone(rehearsal["cell"])
-        # Both catch modes rehearsed; the lattice is the picked mode's.
+        # Every catch mode rehearsed; the lattice is the picked mode's.
         self.assertEqual(set(rehearsal["by_mode"]), set(MODES))
         self.assertEqual(rehearsal["in_target"],
                          rehearsal["by_mode"][rehearsal["mode"]])

@@ -15,10 +15,12 @@ stays inside the cells that land in the target); with none, the planner's.
 
 With `modes`, the lattice is rehearsed once per catch mode (`MODES`:
 "plain", the palm waiting; "pitch", the palm turning with the object's
-pitch, planning/follow.py), and the throw takes the mode whose lattice has
-the most robust cell in the target grasp (labels.robustness; a tie goes to
-the one with more such cells, then to "plain"): the follow lands some
-pairs the waiting palm tilts and tips others off the palm's edge
+pitch; "along", the palm moving with the object along the palm and
+lowered along its normal; planning/follow.py), and the throw takes the
+mode whose lattice has the most robust cell in the target grasp
+(labels.robustness; a tie goes to the one with more such cells, then to
+"plain", then to the first in MODES): the follow lands some pairs the
+waiting palm tilts and tips others off the palm's edge
 (studies/landing_step/FINDINGS.md §7), which the rehearsal tells apart
 before the throw.
 
@@ -51,9 +53,10 @@ from regrasp_drake.world.object_model import ObjectSpec
 LATTICE_ROWS = tuple(range(1, len(H_CATCH_VALUES), 2))   # 0.08 ... 0.40 m
 LATTICE_COLUMNS = tuple(range(1, len(H_DOWN_VALUES), 3))  # -0.13 ... -0.01 m
 LATTICE = [(i, j) for i in LATTICE_ROWS for j in LATTICE_COLUMNS]
-# The catch modes a rehearsal may compare: the palm waiting, or turning
-# with the object's pitch (catch.follow_pitch).
-MODES = ("plain", "pitch")
+# The catch modes a rehearsal may compare: the palm waiting, turning with
+# the object's pitch (catch.follow_pitch), or moving with it along the palm
+# (catch.follow_along).
+MODES = ("plain", "pitch", "along")
 
 
 @dc.dataclass(frozen=True)
@@ -82,6 +85,7 @@ def mode_scenario(scenario: Scenario, mode: str) -> Scenario:
         raise ValueError(f"mode: got {mode!r}, expected one of {MODES}")
     out = copy.deepcopy(scenario)
     out.catch.follow_pitch = mode == "pitch"
+    out.catch.follow_along = mode == "along"
     return out
 
 
