@@ -200,6 +200,20 @@ def main(argv=None) -> int:
         "objects": names, "lopsided": lopsided, "pairs": []}
     print(f"{args.target}: {len(names)} maps ({len(lopsided)} lopsided); "
           "the choosers by geometry: learned / paper / constant / ceiling")
+    # Each step's (design's) share of cells in the target grasp, also with
+    # one design alone (a data set made again at a new default).
+    report["in_target"] = {
+        f"{step:g}": {group: round(float(np.mean(
+            [maps[step][n] for n in group_names])), 4) if group_names else None
+            for group, group_names in (("all", names),
+                                       ("lopsided", lopsided),
+                                       ("round", round_))}
+        for step in steps}
+    for step in steps:
+        shares = report["in_target"][f"{step:g}"]
+        print(f"{label(step)}: cells in the target " + ", ".join(
+            f"{group} {share:.3f}" for group, share in shares.items()
+            if share is not None))
     for coarse_step, fine_step in zip(steps, steps[1:]):
         coarse, fine = maps[coarse_step], maps[fine_step]
         pair = {"steps_ms": [coarse_step, fine_step]} | {
