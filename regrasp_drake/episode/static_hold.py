@@ -56,7 +56,7 @@ class Closing:
     lies (toward the fingertips, [m]; None: where the catch's palm pose puts
     it, catch.palm_toward_fingers_m), whether the fingers start from the
     catch's pre-shape (catch.preshape_closure) instead of open, in which
-    order they close (catch_state_machine.CLOSING_ORDERS) and at what
+    order they close (robot.CLOSING_ORDERS) and at what
     fraction of their speed."""
     name: str
     across_m: float | None = None

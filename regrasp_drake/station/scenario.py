@@ -279,8 +279,8 @@ class CatchConfig:
     # The order the fingers close in once the catch triggers: "together"
     # (the paper's), "thumb_first" (the others start as the thumb arrives)
     # or "fingers_first" (the thumb starts as the others arrive); each
-    # joint at its full speed (studies/landing_step/FINDINGS.md, the
-    # closing's order).
+    # joint at its full speed. Neither other order holds more in the static
+    # test (studies/landing_step/FINDINGS.md §9).
     closing_order: str = "together"
     # Speed at which the hand is lowered by |h_down|, [m/s].
     lower_speed_m_per_s: float = 1.0
