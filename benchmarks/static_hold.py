@@ -64,6 +64,7 @@ def _job(task) -> dict:
             "success": test.success, "held": test.held,
             "reason": test.reason, "rest": test.rest, "closed": test.closed,
             "grasp_error": test.grasp_error, "closing": test.closing,
+            "closings": [c.name for c in closings],
             "tried": test.tried, "line": test.line()}
 
 
@@ -127,7 +128,8 @@ def main(argv=None) -> int:
             raise InputError(f"--workers: got {args.workers}, expected an "
                              "integer >= 1")
         targets = [Target.parse(t) for t in args.targets]
-        closings = (tuple(closing_named(n) for n in args.closings)
+        closings = (tuple(closing_named(n, "--closings")
+                          for n in args.closings)
                     if args.closings else CLOSINGS)
         names = args.objects or object_names() + [
             o.name for o in load_catalogue().values() if o.set == "holdout"]
@@ -145,6 +147,14 @@ def main(argv=None) -> int:
                 pairs.append((name, target))
         rows_path = args.out.with_suffix(".jsonl")
         done = read_rows(rows_path, key=_key)
+        names_tried = [c.name for c in closings]
+        for row in done.values():
+            # Rows written before the field existed carry no closings.
+            if row.get("closings", names_tried) != names_tried:
+                raise InputError(
+                    f"--closings: {rows_path} holds rows of the closings "
+                    f"{row['closings']}, got {names_tried}; expected the "
+                    "same closings to resume it, or another --out")
         jobs = [(name, target, step, closings) for step in args.steps
                 for name, target in pairs
                 if (name, target.kind, target.offset_mm, step) not in done]

@@ -85,12 +85,12 @@ ORDERED_CLOSINGS = tuple(
 CLOSINGS = PLACED_CLOSINGS + ORDERED_CLOSINGS
 
 
-def closing_named(name: str) -> Closing:
-    """The closing of CLOSINGS called `name`."""
+def closing_named(name: str, field: str = "closing") -> Closing:
+    """The closing of CLOSINGS called `name` (InputError naming `field`)."""
     for closing in CLOSINGS:
         if closing.name == name:
             return closing
-    raise InputError(f"closing: got {name!r}, expected one of "
+    raise InputError(f"{field}: got {name!r}, expected one of "
                      f"{[c.name for c in CLOSINGS]}")
 
 
