@@ -29,12 +29,12 @@ from regrasp_drake.planning.catch_plan import (
     move_torque_ratio,
     palm_poses_for,
 )
+from regrasp_drake.planning.follow import plan_follow
 from regrasp_drake.planning.free_flight import (
     WatchedFlight,
     as_watched,
     flight_from_release,
 )
-from regrasp_drake.planning.follow import plan_follow
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station import throw
 from regrasp_drake.station.catch_state_machine import Phase, lowered_pose

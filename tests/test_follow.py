@@ -11,8 +11,8 @@ from pydrake.math import RotationMatrix
 from pydrake.multibody.tree import JacobianWrtVariable
 
 from regrasp_drake.planning.follow import (
-    FollowLaw,
     NO_FOLLOW,
+    FollowLaw,
     follows,
     joint_follow,
     plan_follow,

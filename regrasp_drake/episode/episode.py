@@ -405,9 +405,9 @@ class Episode:
                  catch_parameters=None, follow=None) -> None:
         """Stage 3: the grasp pose, the catch parameters (h_catch,
         h_down), [m], and the palm's follow (planning/follow.plan_follow)
-        set in the running context (None leaves one as it is). Drake handles the update events of a time at the start of the
-        next step, so the state machine's update at the release time reads
-        them."""
+        set in the running context (None leaves one as it is). Drake
+        handles the update events of a time at the start of the next step,
+        so the state machine's update at the release time reads them."""
         self.diagram.controller.set_task(
             self.simulator.get_mutable_context(), X_WG=X_WG,
             catch_parameters=catch_parameters, follow=follow)

@@ -100,8 +100,8 @@ from regrasp_drake.planning import grasp
 from regrasp_drake.planning.catch_plan import (
     CatchPoint,
 )
-from regrasp_drake.planning.free_flight import flight_from_release
 from regrasp_drake.planning.follow import follows, plan_follow
+from regrasp_drake.planning.free_flight import flight_from_release
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.progress import say
 from regrasp_drake.station.mlp_system import FEATURE_NAMES, CatchMlp, ParameterSpace
