@@ -230,9 +230,9 @@ def main(argv=None) -> int:
                         help="noise seeds per (object, target, mode)")
     parser.add_argument("--rehearse", action="store_true",
                         help="the first catch is rehearsed at a lattice of "
-                             "cells in both catch modes before the throw and "
-                             "starts from the most robust in the target grasp "
-                             "(learning/rehearsal.py)")
+                             "cells in each catch mode (learning/rehearsal.py's "
+                             "MODES) before the throw and "
+                             "starts from the most robust in the target grasp")
     parser.add_argument("--workers", type=int, default=1,
                         help="episodes run side by side in forked processes "
                              "(default 1)")

@@ -213,9 +213,9 @@ def learn(obj: ObjectSpec, *, scenario: Scenario | None = None,
     under `any`) or "paper" (the paper's network; docs/planner.md).
     rehearse: the first catch (planned from the watched or the predicted
     flight; not at_release) is rehearsed in simulation at a lattice of 25
-    cells in both catch modes before the throw and starts from the most
-    robust one in the target grasp (learning/rehearsal.py; about a minute
-    on two cores)."""
+    cells in each of three catch modes before the throw and starts from
+    the most robust one in the target grasp (learning/rehearsal.py; one
+    to two minutes on two cores)."""
     if planner not in PLANNER_CHOICES:
         raise field_error("planner", planner, " or ".join(PLANNER_CHOICES))
     watch = _watch(watch, first_throw, "learn")

@@ -189,8 +189,9 @@ def _add_first_throw_args(p: argparse.ArgumentParser) -> None:
                         "models/flight_predictor.json)")
     p.add_argument("--rehearse", action="store_true",
                    help="rehearse the first catch in simulation at a "
-                        "lattice of 25 cells in both catch modes (the palm "
-                        "waiting or turning with the pitch) before the "
+                        "lattice of 25 cells in three catch modes (the palm "
+                        "waiting, turning with the pitch, moving with the "
+                        "object along the palm) before the "
                         "throw and start from the most robust one in the "
                         "target grasp (learning/rehearsal.py; not with "
                         "--at-release)")

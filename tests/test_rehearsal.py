@@ -2,9 +2,12 @@
 the throw it rehearses when nothing differs."""
 
 import unittest
+from unittest import mock
 
+import numpy as np
 import torch
 
+from regrasp_drake.learning import rehearsal as rehearsal_module
 from regrasp_drake.learning.flight_predictor import FlightPredictor
 from regrasp_drake.learning.learning_phase import learn
 from regrasp_drake.learning.rehearsal import (
@@ -12,8 +15,11 @@ from regrasp_drake.learning.rehearsal import (
     LATTICE_COLUMNS,
     LATTICE_ROWS,
     MODES,
+    PALM_SHIFTS_M,
+    Rehearsal,
     mode_scenario,
     rehearsal_scenario,
+    rehearse,
 )
 from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning.grasp import Target
@@ -50,6 +56,71 @@ class RehearsalScenarioTest(unittest.TestCase):
                              (mode == "pitch", mode == "along"), mode)
         with self.assertRaisesRegex(ValueError, "mode: got 'spin'"):
             mode_scenario(scenario, "spin")
+
+
+class PalmPlaceTest(unittest.TestCase):
+    """Which of the palm's places a rehearsal picks (the lattices given: the
+    simulation behind them is RehearsedFirstThrowTest's)."""
+
+    @staticmethod
+    def lattice(cells):
+        in_target = np.zeros((len(LATTICE_ROWS), len(LATTICE_COLUMNS)), bool)
+        for i, j in cells:
+            in_target[i, j] = True
+        return in_target
+
+    def run_with(self, by_place, unreachable=()):
+        """rehearse() with each place's lattice from `by_place` (shift in mm
+        -> lattice cells in the target), moves in `unreachable` [mm]
+        refused as out of the arm's reach; the plan is the shift itself."""
+        def rehearse_modes(scenario, obj, ik, plan, modes):
+            in_target = self.lattice(by_place[round(1e3 * plan, 3)])
+            best = rehearsal_module.label_cell(in_target)
+            return Rehearsal(in_target=in_target,
+                             cell=None if best is None else (
+                                 LATTICE_ROWS[best[0]],
+                                 LATTICE_COLUMNS[best[1]]),
+                             counts={"plain": int(in_target.sum())})
+
+        def shifted(plan, shift_m, ik):
+            moved = plan + shift_m
+            return None if round(1e3 * shift_m, 3) in unreachable else moved
+
+        with mock.patch.object(rehearsal_module, "_rehearse_modes",
+                               rehearse_modes), \
+                mock.patch.object(rehearsal_module, "shifted_along_axis",
+                                  shifted):
+            return rehearse(None, None, None, 0.0, modes=MODES,
+                            shifts=PALM_SHIFTS_M)
+
+    def test_the_plan_place_when_it_lands(self):
+        picked = self.run_with({0.0: [(1, 1)], 4.0: [(2, 2), (2, 3)]})
+        self.assertEqual((picked.shift_m, picked.plan), (0.0, None))
+        self.assertEqual(list(picked.places), [0.0])  # nothing else tried
+        self.assertEqual(picked.as_dict()["palm_shift_mm"], 0.0)
+
+    def test_the_nearest_ring_that_lands_and_its_best_place(self):
+        none = []
+        block = [(i, j) for i in range(3) for j in range(3)]
+        picked = self.run_with({0.0: none, 4.0: none, -4.0: none,
+                                8.0: [(4, 4)], -8.0: block})
+        self.assertEqual(picked.shift_m, -0.008)  # the more robust lattice
+        self.assertEqual(picked.plan, -0.008)
+        # (the lattice's edge is no miss: its corner is the farthest)
+        self.assertEqual(picked.cell, (LATTICE_ROWS[0], LATTICE_COLUMNS[0]))
+        self.assertEqual(list(picked.places), [0.0, 4.0, -4.0, 8.0, -8.0])
+        self.assertEqual(picked.as_dict()["places"]["-8"], {"plain": 9})
+        # A ring with a landing place ends the search.
+        picked = self.run_with({0.0: none, 4.0: [(0, 0)], -4.0: none})
+        self.assertEqual(picked.shift_m, 0.004)
+        self.assertEqual(list(picked.places), [0.0, 4.0, -4.0])
+
+    def test_no_place_lands_and_unreachable_moves(self):
+        picked = self.run_with({0.0: [], -4.0: [], -8.0: []},
+                               unreachable=(4.0, 8.0))
+        self.assertIsNone(picked.cell)
+        self.assertEqual((picked.shift_m, picked.plan), (0.0, None))
+        self.assertEqual(list(picked.places), [0.0, -4.0, -8.0])
 
 
 class RehearsedFirstThrowTest(unittest.TestCase):

@@ -84,7 +84,12 @@ from regrasp_drake.learning.learning_result import (
     NoCatchPoint,
 )
 from regrasp_drake.learning.planner import Planner, load_planner
-from regrasp_drake.learning.rehearsal import MODES, mode_scenario, rehearse
+from regrasp_drake.learning.rehearsal import (
+    MODES,
+    PALM_SHIFTS_M,
+    mode_scenario,
+    rehearse,
+)
 from regrasp_drake.learning.search import (
     SEARCHES,
     Search,
@@ -401,17 +406,24 @@ class _Phase:
         self.start_chooser = self.planner.name
         if self.rehearse and self.rehearsal is None:
             self.rehearsal = rehearse(self.scenario, self.obj, self.ik,
-                                      plan, modes=MODES)
-            counts = ", ".join(f"{mode} {n}" for mode, n in
-                               self.rehearsal.counts.items())
-            self.report(f"rehearsed: lattice cells in the target grasp of "
-                        f"{self.rehearsal.in_target.size}: {counts}")
+                                      plan, modes=MODES,
+                                      shifts=PALM_SHIFTS_M)
+            for mm, by_mode in self.rehearsal.places.items():
+                counts = ", ".join(f"{mode} {n}"
+                                   for mode, n in by_mode.items())
+                self.report(f"rehearsed (palm {mm:+g} mm along the axis): "
+                            f"lattice cells in the target grasp of "
+                            f"{self.rehearsal.in_target.size}: {counts}")
             if self.rehearsal.cell is not None:
                 first, self.start_chooser = self.rehearsal.cell, "rehearsal"
                 self.catch_scenario = mode_scenario(self.scenario,
                                                     self.rehearsal.mode)
-        start, reach = feasible_start(first, self.ik, plan,
-                                      along_normal=follows(self.scenario)[0])
+            if self.rehearsal.plan is not None:  # the palm moved
+                plan = self.plan = self.rehearsal.plan
+                self.palm_shift_m += self.rehearsal.shift_m
+        start, reach = feasible_start(
+            first, self.ik, plan,
+            along_normal=follows(self.catch_scenario)[0])
         self.report(f"catch point at t = {plan.catch_point.t_s:.3f} s, "
                     f"v_catch {plan.catch_point.v_catch:.3f} m/s; network: "
                     f"h_catch {self.raw[0]:.3f} m, h_down {self.raw[1]:.3f} m;"

@@ -24,6 +24,16 @@ waiting palm tilts and tips others off the palm's edge
 (studies/landing_step/FINDINGS.md §7), which the rehearsal tells apart
 before the throw.
 
+With `shifts` (PALM_SHIFTS_M), where no mode's lattice has a cell in the
+target grasp at the plan's place, the palm's place is rehearsed again,
+moved along the object's axis (throw_catch.shifted_along_axis), the
+nearest places first: the first ring of places where some lattice has a
+cell in the target gives the place, mode and cell, scored as above (a tie
+goes to the place listed first). A moved palm moves where the object
+comes to rest in the hand, so the moves stay within the target's offset
+window (planning/grasp.OFFSET_TOLERANCE_MM) and the rehearsal judges them
+against it like any catch.
+
 The rehearsal sees neither the throw's release noise nor a finer step than
 the shipped one: a run judged under noise or at a finer step
 (benchmarks/regrasp_targets.py --noise-level, --scenario-text) judges it
@@ -46,7 +56,11 @@ from regrasp_drake.parameter_space import (
 from regrasp_drake.planning.follow import plan_follow
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.scenario import Scenario, ThrowNoise
-from regrasp_drake.throw_catch import CatchPlan, release_correction
+from regrasp_drake.throw_catch import (
+    CatchPlan,
+    release_correction,
+    shifted_along_axis,
+)
 from regrasp_drake.world.object_model import ObjectSpec
 
 # The lattice's rows (h_catch indices) and columns (h_down indices).
@@ -57,6 +71,12 @@ LATTICE = [(i, j) for i in LATTICE_ROWS for j in LATTICE_COLUMNS]
 # the object's pitch (catch.follow_pitch), or moving with it along the palm
 # (catch.follow_along).
 MODES = ("plain", "pitch", "along")
+# The palm's places rehearsed when no mode lands at the plan's: moved along
+# the object's axis by these [m], ring by ring (the nearest ring first). A
+# probe of pairs without a cell at the plan's place found cells with the
+# palm moved 8 mm toward the axis's +y end in some of them
+# (studies/landing_step/FINDINGS.md §13).
+PALM_SHIFTS_M = ((0.004, -0.004), (0.008, -0.008))
 
 
 @dc.dataclass(frozen=True)
@@ -69,6 +89,12 @@ class Rehearsal:
     cell: tuple[int, int] | None
     mode: str = "plain"
     counts: dict = dc.field(default_factory=dict)
+    # The palm's move along the object's axis from the plan's place [m],
+    # the plan so moved (None: not moved), and each place rehearsed
+    # (shift in mm -> each mode's count of lattice cells in the target).
+    shift_m: float = 0.0
+    plan: CatchPlan | None = None
+    places: dict = dc.field(default_factory=dict)
 
     def as_dict(self) -> dict:
         return {"cell": None if self.cell is None else list(self.cell),
@@ -76,7 +102,17 @@ class Rehearsal:
                 "in_target": int(self.in_target.sum()),
                 "of": int(self.in_target.size),
                 "by_mode": dict(self.counts),
-                "lattice": self.in_target.astype(int).tolist()}
+                "lattice": self.in_target.astype(int).tolist(),
+                "palm_shift_mm": round(1e3 * self.shift_m, 3),
+                "places": {f"{mm:+g}": dict(counts)
+                           for mm, counts in self.places.items()}}
+
+    def score(self) -> tuple:
+        """What a rehearsal's pick is ranked by, highest first: its lattice's
+        largest robustness (labels.robustness), its count of cells in the
+        target grasp, and whether the palm waits ("plain")."""
+        return (int(robustness(self.in_target).max()),
+                int(self.in_target.sum()), self.mode == "plain")
 
 
 def mode_scenario(scenario: Scenario, mode: str) -> Scenario:
@@ -103,25 +139,48 @@ def rehearsal_scenario(scenario: Scenario) -> Scenario:
 
 
 def rehearse(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
-             plan: CatchPlan, modes=None) -> Rehearsal:
+             plan: CatchPlan, modes=None, shifts=()) -> Rehearsal:
     """The catch under `plan` rehearsed at every LATTICE cell (see the
     module's docstring), its palm corrected at the rehearsed throw's release
     as the throw will correct it (throw_catch.release_correction); one
     process. `modes`: the catch modes compared (a subset of MODES; None:
-    the scenario's own only)."""
+    the scenario's own only). `shifts`: rings of the palm's moves along
+    the object's axis [m] (PALM_SHIFTS_M) rehearsed when no mode lands in
+    the target grasp at the plan's place; a move the arm does not reach is
+    skipped."""
+    best = _rehearse_modes(scenario, obj, ik, plan, modes)
+    places = {0.0: best.counts}
+    for ring in shifts if best.cell is None else ():
+        found = []
+        for shift_m in ring:
+            moved = shifted_along_axis(plan, shift_m, ik)
+            if moved is None:
+                continue
+            rehearsal = _rehearse_modes(scenario, obj, ik, moved, modes)
+            places[round(1e3 * shift_m, 3)] = rehearsal.counts
+            if rehearsal.cell is not None:
+                found.append(dc.replace(rehearsal, shift_m=shift_m,
+                                        plan=moved))
+        if found:
+            best = max(found, key=Rehearsal.score)
+            break
+    return dc.replace(best, places=places)
+
+
+def _rehearse_modes(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
+                    plan: CatchPlan, modes) -> Rehearsal:
+    """`rehearse` at the plan's place: each of `modes` (None: the
+    scenario's own), the one whose pick scores highest (a tie: the first in
+    `modes`)."""
     if not modes:
-        return _rehearse(rehearsal_scenario(scenario), obj, ik, plan)
+        only = _rehearse(rehearsal_scenario(scenario), obj, ik, plan)
+        return dc.replace(only, mode="own",
+                          counts={"own": int(only.in_target.sum())})
     rehearsals = {mode: dc.replace(_rehearse(rehearsal_scenario(
         mode_scenario(scenario, mode)), obj, ik, plan), mode=mode)
         for mode in modes}
-
-    def score(mode):
-        in_target = rehearsals[mode].in_target
-        return (int(robustness(in_target).max()), int(in_target.sum()),
-                mode == "plain")
-
-    best = max(modes, key=score)
-    return dc.replace(rehearsals[best], counts={
+    best = max(rehearsals.values(), key=Rehearsal.score)
+    return dc.replace(best, counts={
         mode: int(r.in_target.sum()) for mode, r in rehearsals.items()})
 
 
