@@ -62,11 +62,10 @@ from regrasp_drake import atomic_io
 
 from regrasp_drake import scenario_args
 from regrasp_drake.paths import MODELS_DIR
+from regrasp_drake.station.scenario import ThrowNoise
 
 _MODES = ("watch", "first-throw", "at-release", "watch-uncorrected",
           "first-throw-uncorrected")
-RELEASE_STD_PER_LEVEL_S = 0.002
-JOINT_DV_STD_PER_LEVEL = 0.03  # rad/s
 RESULTS = MODELS_DIR / "results"
 
 
@@ -82,10 +81,7 @@ def wilson_interval(caught: int, trials: int, z: float = 1.96):
 
 
 def _scenario(level, trial, scenario):
-    from regrasp_drake.station.scenario import ThrowNoise
-    noise = ThrowNoise(release_time_std_s=level * RELEASE_STD_PER_LEVEL_S,
-                       joint_velocity_std_rad_per_s=level
-                       * JOINT_DV_STD_PER_LEVEL, seed=trial)
+    noise = ThrowNoise.at_level(level, seed=trial)
     return dc.replace(scenario, throw=dc.replace(scenario.throw, noise=noise))
 
 
@@ -298,6 +294,7 @@ def _run(args) -> int:
     for mode in libraries:
         curves[mode] = []
         for level in args.levels:
+            noise = ThrowNoise.at_level(level, seed=0)
             rows = [r for k, r in done.items() if k[0] == mode
                     and k[2] == level and k[1] in args.objects
                     and k[1] in learned[mode] and k[3] < args.trials]
@@ -305,8 +302,9 @@ def _run(args) -> int:
             interval = wilson_interval(caught, len(rows))
             curves[mode].append({
                 "level": level,
-                "release_time_std_ms": level * RELEASE_STD_PER_LEVEL_S * 1e3,
-                "joint_velocity_std_rad_per_s": level * JOINT_DV_STD_PER_LEVEL,
+                "release_time_std_ms": 1e3 * noise.release_time_std_s,
+                "joint_velocity_std_rad_per_s":
+                    noise.joint_velocity_std_rad_per_s,
                 "trials": len(rows), "caught": caught,
                 "objects": len({k[1] for k in done if k[0] == mode
                                 and k[2] == level and k[1] in args.objects

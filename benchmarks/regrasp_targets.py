@@ -43,7 +43,11 @@ from regrasp_drake.planning import grasp
 from regrasp_drake.planning.grasp import Target, check_reachable, miss_reason
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.mlp_system import load_weights
-from regrasp_drake.station.scenario import scenario_digest, with_target
+from regrasp_drake.station.scenario import (
+    ThrowNoise,
+    scenario_digest,
+    with_target,
+)
 from regrasp_drake.throw_catch import planned_grasp
 from regrasp_drake.world.objects import load_catalogue, resolve_object
 
@@ -193,9 +197,7 @@ def noisy(scenario, level: float, trial: int):
     if not level:
         return scenario
     out = copy.deepcopy(scenario)
-    out.throw.noise.release_time_std_s = 0.002 * level
-    out.throw.noise.joint_velocity_std_rad_per_s = 0.03 * level
-    out.throw.noise.seed = trial
+    out.throw.noise = ThrowNoise.at_level(level, seed=trial)
     return out
 
 

@@ -1,6 +1,7 @@
 """The first throw's rehearsal: what it simulates, and that it predicts
 the throw it rehearses when nothing differs."""
 
+import dataclasses as dc
 import unittest
 from unittest import mock
 
@@ -14,6 +15,9 @@ from regrasp_drake.learning.rehearsal import (
     LATTICE,
     LATTICE_COLUMNS,
     LATTICE_ROWS,
+    MARGIN_CANDIDATES,
+    MARGIN_DRAWS,
+    MARGIN_NOISE_SEEDS,
     MODES,
     PALM_SHIFTS_M,
     Rehearsal,
@@ -121,6 +125,79 @@ class PalmPlaceTest(unittest.TestCase):
         self.assertIsNone(picked.cell)
         self.assertEqual((picked.shift_m, picked.plan), (0.0, None))
         self.assertEqual(list(picked.places), [0.0, -4.0, -8.0])
+
+
+class MarginTest(unittest.TestCase):
+    """The margin's candidates and draws (the landings given: the simulation
+    behind them is RehearsedFirstThrowTest's)."""
+
+    def setUp(self):
+        lattice = PalmPlaceTest.lattice
+        block = [(i, j) for i in range(3) for j in range(3)]
+        self.plain = Rehearsal(in_target=lattice(block), cell=(1, 1),
+                               mode="plain")
+        self.pitch = Rehearsal(in_target=lattice([(4, 4)]), cell=(9, 13),
+                               mode="pitch")
+        self.place = dc.replace(self.plain, lattices=(self.plain, self.pitch),
+                                counts={"plain": 9, "pitch": 1})
+        self.draws = []
+
+    def landings(self, lands):
+        """A stand-in for rehearsal._landings: `lands(mode, draw, cell)`."""
+        def run(scenario, obj, ik, plan, cells):
+            noise = scenario.throw.noise
+            if noise.is_zero():
+                # the half draw: the shipped steps halved, no noise
+                self.assertEqual((scenario.target_catch_time_step_s,
+                                  scenario.landing_time_step_s),
+                                 (0.00025, 0.0000625))
+                draw = "half"
+            else:
+                self.assertEqual((noise.release_time_std_s,
+                                  noise.joint_velocity_std_rad_per_s),
+                                 (0.002, 0.03))
+                draw = f"noise {noise.seed}"
+            mode = ("pitch" if scenario.catch.follow_pitch else
+                    "along" if scenario.catch.follow_along else "plain")
+            self.draws.append((mode, draw, tuple(cells)))
+            return [lands(mode, draw, cell) for cell in cells]
+        return mock.patch.object(rehearsal_module, "_landings", run)
+
+    def test_candidates(self):
+        candidates = rehearsal_module._candidates(self.place, [self.place])
+        self.assertEqual(len(candidates), MARGIN_CANDIDATES)
+        # the pick first, then the block's most robust cells: its corner
+        # (3 from a miss), then the cells 2 from one (row-major)
+        self.assertEqual([(c.mode, c.cell) for c in candidates],
+                         [("plain", (1, 1)), ("plain", (1, 4)),
+                          ("plain", (3, 1)), ("plain", (3, 4))])
+
+    def test_the_candidate_landing_in_most_draws(self):
+        def lands(mode, draw, cell):
+            return cell == (3, 4) or (cell == (1, 1) and draw == "half")
+        with self.landings(lands):
+            picked = rehearsal_module._with_margin(
+                Scenario(), None, None, None,
+                dc.replace(self.place, places={0.0: self.place.counts}),
+                [self.place])
+        self.assertEqual((picked.mode, picked.cell), ("plain", (3, 4)))
+        self.assertEqual(picked.counts, {"plain": 9, "pitch": 1})
+        self.assertEqual([m["landed_in"] for m in picked.margin],
+                         [["half"], [], [], list(MARGIN_DRAWS)])
+        # one throw per draw for the four candidates of one place and mode
+        self.assertEqual([d[1] for d in self.draws],
+                         ["half"] + [f"noise {s}" for s in MARGIN_NOISE_SEEDS])
+        self.assertNotIn(0, MARGIN_NOISE_SEEDS)  # the judged runs' seeds
+        self.assertNotIn(1, MARGIN_NOISE_SEEDS)
+        self.assertNotIn(2, MARGIN_NOISE_SEEDS)
+
+    def test_a_tie_keeps_the_pick(self):
+        with self.landings(lambda mode, draw, cell: True):
+            picked = rehearsal_module._with_margin(
+                Scenario(), None, None, None,
+                dc.replace(self.place, places={0.0: self.place.counts}),
+                [self.place])
+        self.assertEqual((picked.mode, picked.cell), ("plain", (1, 1)))
 
 
 class RehearsedFirstThrowTest(unittest.TestCase):

@@ -85,6 +85,7 @@ from regrasp_drake.learning.learning_result import (
 )
 from regrasp_drake.learning.planner import Planner, load_planner
 from regrasp_drake.learning.rehearsal import (
+    MARGIN_DRAWS,
     MODES,
     PALM_SHIFTS_M,
     mode_scenario,
@@ -407,13 +408,18 @@ class _Phase:
         if self.rehearse and self.rehearsal is None:
             self.rehearsal = rehearse(self.scenario, self.obj, self.ik,
                                       plan, modes=MODES,
-                                      shifts=PALM_SHIFTS_M)
+                                      shifts=PALM_SHIFTS_M, margin=True)
             for mm, by_mode in self.rehearsal.places.items():
                 counts = ", ".join(f"{mode} {n}"
                                    for mode, n in by_mode.items())
                 self.report(f"rehearsed (palm {mm:+g} mm along the axis): "
                             f"lattice cells in the target grasp of "
                             f"{self.rehearsal.in_target.size}: {counts}")
+            for c in self.rehearsal.margin:
+                self.report(f"margin: {c['mode']} at {c['palm_shift_mm']:+g}"
+                            f" mm, cell {tuple(c['cell'])}: lands in "
+                            f"{len(c['landed_in'])} of {len(MARGIN_DRAWS)} "
+                            f"draws ({', '.join(c['landed_in']) or 'none'})")
             if self.rehearsal.cell is not None:
                 first, self.start_chooser = self.rehearsal.cell, "rehearsal"
                 self.catch_scenario = mode_scenario(self.scenario,

@@ -34,10 +34,19 @@ comes to rest in the hand, so the moves stay within the target's offset
 window (planning/grasp.OFFSET_TOLERANCE_MM) and the rehearsal judges them
 against it like any catch.
 
-The rehearsal sees neither the throw's release noise nor a finer step than
-the shipped one: a run judged under noise or at a finer step
-(benchmarks/regrasp_targets.py --noise-level, --scenario-text) judges it
-on what it did not see.
+With `margin`, the pick is then judged as a probability (issue 60 item
+3): the MARGIN_CANDIDATES best cells over every lattice rehearsed (the
+pick above first, then by each cell's robustness, its lattice's count of
+cells in the target and the waiting palm) are rehearsed again in
+MARGIN_DRAWS: at half the shipped catch and landing steps, and under
+release noise at the shipped level (ThrowNoise.at_level(1)) with the
+rehearsal's own seeds. The throw takes the candidate that lands in the
+target grasp in the most draws (a tie: the earlier candidate).
+
+The rehearsal never sees what judges it: a run judged under release noise
+has its own seeds (benchmarks/regrasp_targets.py --noise-level: the trial
+numbers, never MARGIN_NOISE_SEEDS), and one judged at a finer step
+(--scenario-text) a step finer than the rehearsal's half.
 """
 
 import copy
@@ -72,11 +81,18 @@ LATTICE = [(i, j) for i in LATTICE_ROWS for j in LATTICE_COLUMNS]
 # (catch.follow_along).
 MODES = ("plain", "pitch", "along")
 # The palm's places rehearsed when no mode lands at the plan's: moved along
-# the object's axis by these [m], ring by ring (the nearest ring first). A
-# probe of pairs without a cell at the plan's place found cells with the
-# palm moved 8 mm toward the axis's +y end in some of them
-# (studies/landing_step/FINDINGS.md §13).
+# the object's axis by these [m], ring by ring (the nearest ring first):
+# of the 14 pairs of 60 without a cell at the plan's place, 10 have one
+# 4 mm from it; the 8 mm ring found none for the other 4
+# (studies/landing_step/FINDINGS.md §12).
 PALM_SHIFTS_M = ((0.004, -0.004), (0.008, -0.008))
+# The margin's candidates, and the draws each is rehearsed again in besides
+# the rehearsal's own: "half" (the shipped catch and landing steps halved)
+# and one release-noise draw per seed at the shipped level. The judged
+# runs' noise seeds are their trial numbers (0, 1, 2, ...): these are not.
+MARGIN_CANDIDATES = 4
+MARGIN_NOISE_SEEDS = (1001, 1002)
+MARGIN_DRAWS = ("half",) + tuple(f"noise {seed}" for seed in MARGIN_NOISE_SEEDS)
 
 
 @dc.dataclass(frozen=True)
@@ -95,6 +111,10 @@ class Rehearsal:
     shift_m: float = 0.0
     plan: CatchPlan | None = None
     places: dict = dc.field(default_factory=dict)
+    # Every mode's lattice at this place (Rehearsals), and the margin's
+    # candidates with the draws each landed in (dicts; see `rehearse`).
+    lattices: tuple = ()
+    margin: list = dc.field(default_factory=list)
 
     def as_dict(self) -> dict:
         return {"cell": None if self.cell is None else list(self.cell),
@@ -105,7 +125,8 @@ class Rehearsal:
                 "lattice": self.in_target.astype(int).tolist(),
                 "palm_shift_mm": round(1e3 * self.shift_m, 3),
                 "places": {f"{mm:+g}": dict(counts)
-                           for mm, counts in self.places.items()}}
+                           for mm, counts in self.places.items()},
+                "margin": list(self.margin)}
 
     def score(self) -> tuple:
         """What a rehearsal's pick is ranked by, highest first: its lattice's
@@ -139,7 +160,8 @@ def rehearsal_scenario(scenario: Scenario) -> Scenario:
 
 
 def rehearse(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
-             plan: CatchPlan, modes=None, shifts=()) -> Rehearsal:
+             plan: CatchPlan, modes=None, shifts=(),
+             margin: bool = False) -> Rehearsal:
     """The catch under `plan` rehearsed at every LATTICE cell (see the
     module's docstring), its palm corrected at the rehearsed throw's release
     as the throw will correct it (throw_catch.release_correction); one
@@ -147,24 +169,103 @@ def rehearse(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     the scenario's own only). `shifts`: rings of the palm's moves along
     the object's axis [m] (PALM_SHIFTS_M) rehearsed when no mode lands in
     the target grasp at the plan's place; a move the arm does not reach is
-    skipped."""
+    skipped. `margin`: the pick judged again with its rivals in
+    MARGIN_DRAWS (see the module's docstring)."""
     best = _rehearse_modes(scenario, obj, ik, plan, modes)
     places = {0.0: best.counts}
+    rehearsed = [best]
     for ring in shifts if best.cell is None else ():
         found = []
         for shift_m in ring:
             moved = shifted_along_axis(plan, shift_m, ik)
             if moved is None:
                 continue
-            rehearsal = _rehearse_modes(scenario, obj, ik, moved, modes)
+            rehearsal = dc.replace(
+                _rehearse_modes(scenario, obj, ik, moved, modes),
+                shift_m=shift_m, plan=moved)
             places[round(1e3 * shift_m, 3)] = rehearsal.counts
+            rehearsed.append(rehearsal)
             if rehearsal.cell is not None:
-                found.append(dc.replace(rehearsal, shift_m=shift_m,
-                                        plan=moved))
+                found.append(rehearsal)
         if found:
             best = max(found, key=Rehearsal.score)
             break
-    return dc.replace(best, places=places)
+    best = dc.replace(best, places=places)
+    if not margin or best.cell is None:
+        return best
+    return _with_margin(scenario, obj, ik, plan, best, rehearsed)
+
+
+def _candidates(best: Rehearsal, rehearsed) -> list[Rehearsal]:
+    """Up to MARGIN_CANDIDATES picks (each a Rehearsal of its place and
+    mode, with its cell): `best` first, then the cells in the target of
+    every lattice in `rehearsed` (each place's `lattices`, or the place's
+    pick alone), ranked by the cell's robustness, its lattice's count of
+    cells in the target, the waiting palm and the nearer place."""
+    ranked = []
+    for place in rehearsed:
+        for lattice in place.lattices or (place,):
+            lattice = dc.replace(lattice, shift_m=place.shift_m,
+                                 plan=place.plan, lattices=())
+            r = robustness(lattice.in_target)
+            for i, j in np.argwhere(r > 0):
+                cell = (LATTICE_ROWS[i], LATTICE_COLUMNS[j])
+                key = (int(r[i, j]), int(lattice.in_target.sum()),
+                       lattice.mode == "plain", -abs(place.shift_m))
+                ranked.append((key, dc.replace(lattice, cell=cell)))
+    ranked.sort(key=lambda entry: entry[0], reverse=True)  # stable
+    first = dc.replace(best, lattices=())
+    out = [first]
+    for _, candidate in ranked:
+        if len(out) == MARGIN_CANDIDATES:
+            break
+        if (candidate.mode, candidate.shift_m, candidate.cell) != (
+                first.mode, first.shift_m, first.cell):
+            out.append(candidate)
+    return out
+
+
+def _draw_scenario(scenario: Scenario, mode: str, draw: str) -> Scenario:
+    """The rehearsal's scenario in catch mode `mode` ("own": the scenario's
+    own) for one of MARGIN_DRAWS."""
+    out = rehearsal_scenario(scenario if mode == "own"
+                             else mode_scenario(scenario, mode))
+    if draw == "half":
+        for name in ("catch_time_step_s", "target_catch_time_step_s",
+                     "landing_time_step_s"):
+            if getattr(out, name) is not None:
+                setattr(out, name, 0.5 * getattr(out, name))
+    else:
+        out.throw.noise = ThrowNoise.at_level(
+            1.0, seed=int(draw.removeprefix("noise ")))
+    return out
+
+
+def _with_margin(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
+                 plan: CatchPlan, best: Rehearsal, rehearsed) -> Rehearsal:
+    """`best` or a rival (`_candidates`) that lands in the target grasp in
+    more of MARGIN_DRAWS; its `margin` lists every candidate's draws."""
+    candidates = _candidates(best, rehearsed)
+    landed = [[] for _ in candidates]
+    for draw in MARGIN_DRAWS:
+        # The candidates at one place and mode share a throw.
+        groups = {}
+        for k, c in enumerate(candidates):
+            groups.setdefault((c.mode, c.shift_m), []).append(k)
+        for (mode, _), members in groups.items():
+            moved = candidates[members[0]].plan or plan
+            hits = _landings(_draw_scenario(scenario, mode, draw), obj, ik,
+                             moved, [candidates[k].cell for k in members])
+            for k, hit in zip(members, hits):
+                if hit:
+                    landed[k].append(draw)
+    record = [{"mode": c.mode, "palm_shift_mm": round(1e3 * c.shift_m, 3),
+               "cell": list(c.cell), "landed_in": landed[k]}
+              for k, c in enumerate(candidates)]
+    pick = max(range(len(candidates)), key=lambda k: (len(landed[k]), -k))
+    picked = candidates[pick]
+    return dc.replace(picked, places=best.places, margin=record,
+                      counts=best.places[round(1e3 * picked.shift_m, 3)])
 
 
 def _rehearse_modes(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
@@ -181,12 +282,26 @@ def _rehearse_modes(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
         for mode in modes}
     best = max(rehearsals.values(), key=Rehearsal.score)
     return dc.replace(best, counts={
-        mode: int(r.in_target.sum()) for mode, r in rehearsals.items()})
+        mode: int(r.in_target.sum()) for mode, r in rehearsals.items()},
+        lattices=tuple(rehearsals.values()))
 
 
 def _rehearse(rehearsed: Scenario, obj: ObjectSpec, ik: ArmIk,
               plan: CatchPlan) -> Rehearsal:
     """`rehearse` in the one catch mode of `rehearsed`."""
+    in_target = np.array(_landings(rehearsed, obj, ik, plan, LATTICE)
+                         ).reshape(len(LATTICE_ROWS), len(LATTICE_COLUMNS))
+    best = label_cell(in_target)
+    cell = (None if best is None
+            else (LATTICE_ROWS[best[0]], LATTICE_COLUMNS[best[1]]))
+    return Rehearsal(in_target=in_target, cell=cell)
+
+
+def _landings(rehearsed: Scenario, obj: ObjectSpec, ik: ArmIk,
+              plan: CatchPlan, cells) -> list[bool]:
+    """Whether the catch under `plan` lands in the target grasp at each of
+    `cells`, all forked from one throw simulated under `rehearsed`, the
+    palm corrected at its release as the throw corrects it."""
     throws = ThrowCache(size=1)
     episode = Episode(rehearsed, obj, ik=ik, X_WG=plan.X_WG,
                       catch_parameters=(0.0, 0.0), throws=throws)
@@ -200,11 +315,6 @@ def _rehearse(rehearsed: Scenario, obj: ObjectSpec, ik: ArmIk,
     else:
         X_WG, _, follow = corrected
     rows = run_cells(rehearsed, obj, ik=ik, X_WG=X_WG,
-                     parameters=[cell_parameters(c) for c in LATTICE],
+                     parameters=[cell_parameters(c) for c in cells],
                      workers=1, throws=throws, follow=follow)
-    in_target = np.array([r.success for r in rows]).reshape(
-        len(LATTICE_ROWS), len(LATTICE_COLUMNS))
-    best = label_cell(in_target)
-    cell = (None if best is None
-            else (LATTICE_ROWS[best[0]], LATTICE_COLUMNS[best[1]]))
-    return Rehearsal(in_target=in_target, cell=cell)
+    return [bool(r.success) for r in rows]

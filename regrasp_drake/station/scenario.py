@@ -101,6 +101,22 @@ class ThrowNoise:
         return (self.release_time_std_s == 0.0
                 and self.joint_velocity_std_rad_per_s == 0.0)
 
+    @classmethod
+    def at_level(cls, level: float, seed: int) -> "ThrowNoise":
+        """The release noise of level `level` (a number >= 0): release time
+        std level x RELEASE_STD_PER_LEVEL_S, joint velocities level x
+        JOINT_DV_STD_PER_LEVEL. Level 1 is the shipped noise every figure
+        under noise is measured at (benchmarks/noise_curve.py)."""
+        return cls(release_time_std_s=level * RELEASE_STD_PER_LEVEL_S,
+                   joint_velocity_std_rad_per_s=level * JOINT_DV_STD_PER_LEVEL,
+                   seed=seed)
+
+
+# Release noise per level (ThrowNoise.at_level): the release time's std [s]
+# and each arm joint's velocity offset std [rad/s].
+RELEASE_STD_PER_LEVEL_S = 0.002
+JOINT_DV_STD_PER_LEVEL = 0.03
+
 
 @dc.dataclass
 class PalmTossConfig:
