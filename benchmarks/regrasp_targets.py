@@ -233,8 +233,8 @@ def main(argv=None) -> int:
     parser.add_argument("--rehearse", action="store_true",
                         help="the first catch is rehearsed at a lattice of "
                              "cells in each catch mode (learning/rehearsal.py's "
-                             "MODES) before the throw and "
-                             "starts from the most robust in the target grasp")
+                             "MODES) and places before the throw and "
+                             "starts from the cell with the most margin")
     parser.add_argument("--workers", type=int, default=1,
                         help="episodes run side by side in forked processes "
                              "(default 1)")

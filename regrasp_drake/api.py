@@ -213,9 +213,11 @@ def learn(obj: ObjectSpec, *, scenario: Scenario | None = None,
     under `any`) or "paper" (the paper's network; docs/planner.md).
     rehearse: the first catch (planned from the watched or the predicted
     flight; not at_release) is rehearsed in simulation at a lattice of 25
-    cells in each of three catch modes before the throw and starts from
-    the most robust one in the target grasp (learning/rehearsal.py; one
-    to two minutes on two cores)."""
+    cells in each of three catch modes before the throw (the palm moved
+    4-8 mm along the axis where no mode lands) and starts from the cell
+    that lands in the most of its margin's draws (half the step, release
+    noise) among the most robust (learning/rehearsal.py; one to three
+    minutes on two cores)."""
     if planner not in PLANNER_CHOICES:
         raise field_error("planner", planner, " or ".join(PLANNER_CHOICES))
     watch = _watch(watch, first_throw, "learn")

@@ -192,9 +192,11 @@ def _add_first_throw_args(p: argparse.ArgumentParser) -> None:
                         "lattice of 25 cells in three catch modes (the palm "
                         "waiting, turning with the pitch, moving with the "
                         "object along the palm) before the "
-                        "throw and start from the most robust one in the "
-                        "target grasp (learning/rehearsal.py; not with "
-                        "--at-release)")
+                        "throw, with the palm moved 4-8 mm along the axis "
+                        "where no mode lands, and start from the cell that "
+                        "lands in the most draws of its margin (half the "
+                        "step, release noise) among the most robust "
+                        "(learning/rehearsal.py; not with --at-release)")
     p.add_argument("--at-release", action="store_true",
                    help="no watching throw: each throw plans its catch when "
                         "it releases the object, from the object's state "
