@@ -181,6 +181,8 @@ class MarginTest(unittest.TestCase):
                 dc.replace(self.place, places={0.0: self.place.counts}),
                 [self.place])
         self.assertEqual((picked.mode, picked.cell), ("plain", (3, 4)))
+        self.assertEqual(picked.picked_draws(), list(MARGIN_DRAWS))
+        self.assertIsNone(self.plain.picked_draws())  # no margin rehearsed
         self.assertEqual(picked.counts, {"plain": 9, "pitch": 1})
         self.assertEqual([m["landed_in"] for m in picked.margin],
                          [["half"], [], [], list(MARGIN_DRAWS)])

@@ -128,6 +128,15 @@ class Rehearsal:
                            for mm, counts in self.places.items()},
                 "margin": list(self.margin)}
 
+    def picked_draws(self) -> list[str] | None:
+        """The MARGIN_DRAWS the picked candidate landed in (None: no margin
+        rehearsed)."""
+        for c in self.margin:
+            if (c["mode"], c["palm_shift_mm"], tuple(c["cell"])) == (
+                    self.mode, round(1e3 * self.shift_m, 3), self.cell):
+                return list(c["landed_in"])
+        return None
+
     def score(self) -> tuple:
         """What a rehearsal's pick is ranked by, highest first: its lattice's
         largest robustness (labels.robustness), its count of cells in the
