@@ -56,7 +56,8 @@ DEFAULT_TARGETS = [f"{kind}:{offset}" for kind in ("keep", "flip")
 
 
 def run_one(scenario, obj, model, ik, mode, max_throws, predictor,
-            offset_prior, planner=None, rehearse=False) -> dict:
+            offset_prior, planner=None, rehearse=False,
+            rehearsed=None) -> dict:
     try:
         check_reachable(Target(scenario.regrasp.target,
                                scenario.regrasp.offset_mm), obj)
@@ -67,7 +68,8 @@ def run_one(scenario, obj, model, ik, mode, max_throws, predictor,
         result = learn(scenario, obj, model, ik=ik, max_throws=max_throws,
                        progress=None, offset_prior=offset_prior,
                        flight_predictor=predictor if mode == "first-throw"
-                       else None, planner=planner, rehearse=rehearse)
+                       else None, planner=planner, rehearse=rehearse,
+                       rehearsed=rehearsed)
     except (NoCatchPoint, InputError) as e:
         return {"stopped": "no_catch_point", "error": str(e),
                 "success": False, "caught": False,
@@ -96,7 +98,7 @@ def _job(task) -> dict:
     shipped network, flight predictor and offset prior loaded once per
     process."""
     (scenario, target, name, mode, level, trial, max_throws,
-     use_prior, paper, rehearse) = task
+     use_prior, paper, rehearse, rehearsed) = task
     torch.set_num_threads(1)
     if not _MODELS:
         _MODELS["model"] = load_weights(MODELS_DIR / scenario.catch.weights)[0]
@@ -109,10 +111,17 @@ def _job(task) -> dict:
             "level": level, "trial": trial,
             "scenario_digest": scenario_digest(scenario),
             "planners": ("paper" if paper else "shipped")
-            + ("+rehearsal" if rehearse else "")} | run_one(
+            + ("+rehearsal" if rehearse else ""),
+            "rehearsal_replayed": rehearsed is not None} | run_one(
         scenario, resolve_object(name=name), _MODELS["model"], _MODELS["ik"],
         mode, max_throws, _MODELS["predictor"], _MODELS["prior"],
-        PAPER_NETWORK if paper else None, rehearse)
+        PAPER_NETWORK if paper else None, rehearse, rehearsed)
+
+
+def pair_key(r: dict) -> tuple:
+    """A row's (object, target kind, offset, mode), for --rehearsal-from."""
+    return (r["object"], r["target"]["kind"], r["target"]["offset_mm"],
+            r["mode"])
 
 
 def landing(rows: list[dict]) -> dict:
@@ -235,6 +244,12 @@ def main(argv=None) -> int:
                              "cells in each catch mode (learning/rehearsal.py's "
                              "MODES) and places before the throw and "
                              "starts from the cell with the most margin")
+    parser.add_argument("--rehearsal-from", type=Path, metavar="ROWS",
+                        help="with --rehearse: replay each pair's rehearsal "
+                             "from the rows of a run without release noise "
+                             "(a .jsonl of this script, same scenario but "
+                             "for the noise) instead of rehearsing again; "
+                             "the rehearsal never sees the release noise")
     parser.add_argument("--workers", type=int, default=1,
                         help="episodes run side by side in forked processes "
                              "(default 1)")
@@ -254,10 +269,37 @@ def main(argv=None) -> int:
                                  f">= {least}")
         targets = [Target.parse(t) for t in args.targets]
         base, _ = scenario_args.load(args)
+        if args.rehearsal_from is not None and not args.rehearse:
+            raise InputError(f"--rehearsal-from: got {args.rehearsal_from} "
+                             "without --rehearse, expected it with "
+                             "--rehearse")
+        recorded = ({} if args.rehearsal_from is None
+                    else read_rows(args.rehearsal_from, key=lambda r: (
+                        pair_key(r) + (r.get("level", 0.0),
+                                       r.get("trial", 0)))))
     except InputError as e:
         print(f"regrasp_targets: error: {e}", file=sys.stderr)
         return 2
     rows_path = args.out.with_suffix(".jsonl")
+
+    def rehearsed(scenario, key):
+        """The rehearsal recorded for the pair `key` without release noise
+        under `scenario` (None: rehearse)."""
+        if args.rehearsal_from is None:
+            return None
+        row = recorded.get(key + (0.0, 0))
+        if row is None:
+            raise SystemExit(f"regrasp_targets: error: --rehearsal-from: "
+                             f"{args.rehearsal_from} has no row {key} at "
+                             "noise level 0, expected one per pair run")
+        if row["scenario_digest"] != scenario_digest(scenario):
+            raise SystemExit(f"regrasp_targets: error: --rehearsal-from: "
+                             f"row {key} was made under another scenario "
+                             "(besides the release noise), expected this "
+                             "run's")
+        # (None where the pair stopped before its rehearsal: refused as out
+        # of reach, or no catch point; it stops there again.)
+        return row.get("rehearsal")
 
     def row_key(r):
         return (r["object"], r["target"]["kind"], r["target"]["offset_mm"],
@@ -269,13 +311,16 @@ def main(argv=None) -> int:
             (target, name, mode, trial) for target in targets
             for name in object_list(args.objects) for mode in args.modes
             for trial in range(args.trials)]:
-        scenario = noisy(with_target(base, target), args.noise_level, trial)
+        clean = with_target(base, target)
+        scenario = noisy(clean, args.noise_level, trial)
         key = (name, target.kind, target.offset_mm, mode, args.noise_level,
                trial)
         if key not in done:
             jobs.append((scenario, target, name, mode, args.noise_level,
                          trial, args.max_throws, args.offset_prior,
-                         args.paper_network, args.rehearse))
+                         args.paper_network, args.rehearse,
+                         rehearsed(clean, (name, target.kind,
+                                           target.offset_mm, mode))))
         elif done[key]["scenario_digest"] != scenario_digest(scenario):
             raise SystemExit(f"{rows_path}: row {key} was made under "
                              "another scenario; move the file away to "

@@ -4,9 +4,10 @@ unittest runs one test at a time, and most of this suite is serial
 simulation, so one of a 2-core machine's cores idles. This runner splits
 the test modules into N shards of about equal cost (the costs below,
 measured: wall seconds of each module run alone; others count
-DEFAULT_COST_S), runs each shard as `python -m unittest -v MODULES` in its
-own process, prints each shard's output as it finished, and exits non-zero
-when any shard fails. Each module runs whole in one shard, so its
+DEFAULT_COST_S), runs each shard as `python -m tests.shard MODULES` (each
+module in turn, as `python -m unittest -v` would, with its wall seconds)
+in its own process, prints each shard's output as it finished, and exits
+non-zero when any shard fails. Each module runs whole in one shard, so its
 setUpClass fixtures are shared as before.
 """
 
@@ -78,7 +79,7 @@ def main(argv=None) -> int:
             # Each shard its own process group, so that an interrupt reaches
             # its workers too.
             process = subprocess.Popen(
-                [sys.executable, "-m", "unittest", "-v", *mods], cwd=REPO,
+                [sys.executable, "-m", "tests.shard", *mods], cwd=REPO,
                 stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
             runs.append((k, mods, log, process, time.perf_counter()))
             print(f"shard {k}: {len(mods)} modules", flush=True)

@@ -8,6 +8,7 @@ from unittest import mock
 import numpy as np
 import torch
 
+from regrasp_drake.errors import InputError
 from regrasp_drake.learning import rehearsal as rehearsal_module
 from regrasp_drake.learning.flight_predictor import FlightPredictor
 from regrasp_drake.learning.learning_phase import learn
@@ -127,6 +128,20 @@ class PalmPlaceTest(unittest.TestCase):
         self.assertEqual(list(picked.places), [0.0, -4.0, -8.0])
 
 
+    def test_a_recorded_pick_read_back(self):
+        picked = self.run_with({0.0: [], 4.0: [], -4.0: [(1, 1), (1, 2)]})
+        with mock.patch.object(rehearsal_module, "shifted_along_axis",
+                               lambda plan, shift_m, ik: plan + shift_m):
+            read = Rehearsal.from_dict(picked.as_dict(), 0.0, None)
+        self.assertEqual(read.as_dict(), picked.as_dict())
+        self.assertEqual((read.cell, read.mode, read.plan),
+                         (picked.cell, picked.mode, -0.004))
+        with mock.patch.object(rehearsal_module, "shifted_along_axis",
+                               lambda plan, shift_m, ik: None):
+            with self.assertRaisesRegex(ValueError, "palm_shift_mm: got -4"):
+                Rehearsal.from_dict(picked.as_dict(), 0.0, None)
+
+
 class MarginTest(unittest.TestCase):
     """The margin's candidates and draws (the landings given: the simulation
     behind them is RehearsedFirstThrowTest's)."""
@@ -202,31 +217,68 @@ class MarginTest(unittest.TestCase):
         self.assertEqual((picked.mode, picked.cell), ("plain", (1, 1)))
 
 
+# A smaller lattice and fewer margin candidates under test, around the
+# cells where table1-row2 lands in the flip (studies/landing_step rows):
+# the same code, a third of the catches.
+SMALL_LATTICE = dict(LATTICE_ROWS=(5, 7, 9), LATTICE_COLUMNS=(4, 7, 10),
+                     LATTICE=[(i, j) for i in (5, 7, 9) for j in (4, 7, 10)],
+                     MARGIN_CANDIDATES=2)
+
+
 class RehearsedFirstThrowTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        torch.set_num_threads(1)
+        cls.scenario = with_target(load_scenario(), Target("flip"))
+        cls.obj = resolve_object(name="table1-row2")
+        cls.model = load_weights(MODELS_DIR / cls.scenario.catch.weights)[0]
+        cls.predictor = FlightPredictor.load(
+            MODELS_DIR / "flight_predictor.json")
+        with mock.patch.multiple(rehearsal_module, **SMALL_LATTICE):
+            cls.result = cls.learn(rehearse=True)
+
+    @classmethod
+    def learn(cls, **kwargs):
+        return learn(cls.scenario, cls.obj, cls.model, ik=ArmIk(),
+                     max_throws=1, progress=None,
+                     flight_predictor=cls.predictor, **kwargs)
+
     def test_the_rehearsal_predicts_the_throw_it_rehearses(self):
         # Without noise at the shipped steps the throw is what the
         # rehearsal simulated: its cell lands in the target grasp.
-        torch.set_num_threads(1)
-        scenario = with_target(load_scenario(), Target("flip"))
-        model = load_weights(MODELS_DIR / scenario.catch.weights)[0]
-        result = learn(scenario, resolve_object(name="table1-row2"),
-                       model, ik=ArmIk(), max_throws=1, progress=None,
-                       flight_predictor=FlightPredictor.load(
-                           MODELS_DIR / "flight_predictor.json"),
-                       rehearse=True)
-        rehearsal = result.rehearsal
+        rehearsal = self.result.rehearsal
         self.assertIsNotNone(rehearsal["cell"])
         # Every catch mode rehearsed; the lattice is the picked mode's.
         self.assertEqual(set(rehearsal["by_mode"]), set(MODES))
         self.assertEqual(rehearsal["in_target"],
                          rehearsal["by_mode"][rehearsal["mode"]])
         i, j = rehearsal["cell"]
-        self.assertEqual(rehearsal["lattice"][LATTICE_ROWS.index(i)]
-                         [LATTICE_COLUMNS.index(j)], 1)
-        first = result.attempts[0]
+        rows, columns = (SMALL_LATTICE["LATTICE_ROWS"],
+                         SMALL_LATTICE["LATTICE_COLUMNS"])
+        self.assertEqual(rehearsal["lattice"][rows.index(i)]
+                         [columns.index(j)], 1)
+        # The pick and its rival judged in every draw.
+        self.assertEqual(len(rehearsal["margin"]), 2)
+        first = self.result.attempts[0]
         self.assertEqual((first.chosen_by, tuple(first.cell)),
                          ("rehearsal", (i, j)))
-        self.assertTrue(result.success, first.grasp_error)
+        self.assertTrue(self.result.success, first.grasp_error)
+
+    def test_a_recorded_rehearsal_replays_the_same_throw(self):
+        # (benchmarks/regrasp_targets.py --rehearsal-from) Nothing is
+        # rehearsed again: the recorded pick alone gives the same catch.
+        with mock.patch.object(rehearsal_module, "_rehearse",
+                               side_effect=AssertionError("rehearsed")):
+            replayed = self.learn(rehearse=True,
+                                  rehearsed=self.result.rehearsal)
+        self.assertEqual(replayed.rehearsal, self.result.rehearsal)
+        a, b = replayed.attempts[0], self.result.attempts[0]
+        self.assertEqual((a.chosen_by, a.cell, a.outcome, a.grasp_error),
+                         (b.chosen_by, b.cell, b.outcome, b.grasp_error))
+
+    def test_a_recorded_rehearsal_needs_rehearse(self):
+        with self.assertRaisesRegex(InputError, "rehearsed: .*rehearse=True"):
+            self.learn(rehearsed=self.result.rehearsal)
 
 
 if __name__ == "__main__":

@@ -88,6 +88,7 @@ from regrasp_drake.learning.rehearsal import (
     MARGIN_DRAWS,
     MODES,
     PALM_SHIFTS_M,
+    Rehearsal,
     mode_scenario,
     rehearse,
 )
@@ -177,7 +178,8 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
           search: str = "wavefront", prior_maps=None,
           prior_features=None, offset_prior=None,
           planner: Planner | None = None,
-          rehearse: bool = False) -> LearningResult:
+          rehearse: bool = False,
+          rehearsed: dict | None = None) -> LearningResult:
     """The learning phase on one object (see the module's docstring).
 
     planner: who picks the search's first cell (learning/planner.py): None,
@@ -206,8 +208,14 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
     cells in each catch mode (the palm waiting, or turning with the
     object's pitch) and starts from the most robust one in the target grasp,
     in that cell's mode (learning/rehearsal.py; a chooser of its own,
-    `chosen_by` "rehearsal"). at_release: the first-throw mode that plans each throw's
-    catch at its release (no flight predictor then).
+    `chosen_by` "rehearsal"). rehearsed: with rehearse, a rehearsal of this
+    same first catch recorded before (a LearningResult's `rehearsal`, made
+    under this scenario without its release noise), replayed instead of
+    rehearsing again: the rehearsal simulates the throw without release
+    noise, so runs that differ only in their noise share it
+    (benchmarks/regrasp_targets.py --rehearsal-from). at_release: the
+    first-throw mode that plans each throw's catch at its release (no
+    flight predictor then).
 
     library_path: where the learned entry is stored when a throw catches
     (None: not stored). max_throws: stop after this many throws, the watch
@@ -219,12 +227,16 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
         flight_predictor=flight_predictor, at_release=at_release,
         search=search, prior_maps=prior_maps, prior_features=prior_features,
         max_throws=max_throws, library_path=library_path)
+    if rehearsed is not None and not rehearse:
+        raise InputError("rehearsed: got a recorded rehearsal with "
+                         "rehearse=False, expected rehearse=True")
     phase = _Phase(scenario, obj, model, ik or ArmIk(scenario.directives), prior=prior,
                    at_release=at_release, meshcat=meshcat,
                    on_episode=on_episode, progress=progress,
                    offset_prior=offset_prior,
                    planner=planner or load_planner(target_of(scenario)),
-                   rehearse=rehearse and not at_release)
+                   rehearse=rehearse and not at_release,
+                   rehearsed=rehearsed)
     # Throw 1 watches (or the flight is predicted); the offline stage plans
     # the catch and the network's cell starts the search. At release, throw
     # 1 plans its own catch, and starts the search, when it lets go.
@@ -303,12 +315,13 @@ class _Phase:
     def __init__(self, scenario: Scenario, obj: ObjectSpec, model: CatchMlp,
                  ik: ArmIk, *, prior, at_release: bool, meshcat, on_episode,
                  progress, planner: Planner, offset_prior=None,
-                 rehearse: bool = False):
+                 rehearse: bool = False, rehearsed: dict | None = None):
         self.scenario, self.obj, self.model, self.ik = scenario, obj, model, ik
         self.planner = planner
-        # Whether the first catch is rehearsed (learning/rehearsal.py), and
-        # the rehearsal once made; who chose the search's first cell.
-        self.rehearse = rehearse
+        # Whether the first catch is rehearsed (learning/rehearsal.py), a
+        # recorded rehearsal to replay (or None), and the rehearsal once
+        # made; who chose the search's first cell.
+        self.rehearse, self.rehearsed = rehearse, rehearsed
         self.rehearsal = None
         # The scenario of the catching throws: the phase's, in the catch
         # mode the rehearsal picked (learning/rehearsal.py).
@@ -406,9 +419,11 @@ class _Phase:
         first = self.planner.first_cell(self.obj, plan, self.network_cell)
         self.start_chooser = self.planner.name
         if self.rehearse and self.rehearsal is None:
-            self.rehearsal = rehearse(self.scenario, self.obj, self.ik,
-                                      plan, modes=MODES,
-                                      shifts=PALM_SHIFTS_M, margin=True)
+            self.rehearsal = (
+                Rehearsal.from_dict(self.rehearsed, plan, self.ik)
+                if self.rehearsed is not None
+                else rehearse(self.scenario, self.obj, self.ik, plan,
+                              modes=MODES, shifts=PALM_SHIFTS_M, margin=True))
             for mm, by_mode in self.rehearsal.places.items():
                 counts = ", ".join(f"{mode} {n}"
                                    for mode, n in by_mode.items())

@@ -128,6 +128,26 @@ class Rehearsal:
                            for mm, counts in self.places.items()},
                 "margin": list(self.margin)}
 
+    @classmethod
+    def from_dict(cls, d: dict, plan: CatchPlan, ik: ArmIk) -> "Rehearsal":
+        """The rehearsal `as_dict` recorded for the catch under `plan`,
+        its palm's place moved again (shifted_along_axis) from `plan`."""
+        shift_m = 1e-3 * float(d["palm_shift_mm"])
+        moved = None
+        if shift_m:
+            moved = shifted_along_axis(plan, shift_m, ik)
+            if moved is None:
+                raise ValueError(f"palm_shift_mm: got {d['palm_shift_mm']}, "
+                                 "expected a move the arm reaches from "
+                                 "this plan")
+        return cls(in_target=np.array(d["lattice"], dtype=bool),
+                   cell=None if d["cell"] is None else tuple(d["cell"]),
+                   mode=d["mode"], counts=dict(d["by_mode"]),
+                   shift_m=shift_m, plan=moved,
+                   places={float(mm): dict(counts)
+                           for mm, counts in d["places"].items()},
+                   margin=list(d["margin"]))
+
     def picked_draws(self) -> list[str] | None:
         """The MARGIN_DRAWS the picked candidate landed in (None: no margin
         rehearsed)."""
