@@ -158,7 +158,8 @@ class MarginTest(unittest.TestCase):
         self.draws = []
 
     def landings(self, lands):
-        """A stand-in for rehearsal._landings: `lands(mode, draw, cell)`."""
+        """A stand-in for rehearsal._landings: `lands(mode, draw, cell,
+        plan)`."""
         def run(scenario, obj, ik, plan, cells):
             noise = scenario.throw.noise
             if noise.is_zero():
@@ -175,7 +176,7 @@ class MarginTest(unittest.TestCase):
             mode = ("pitch" if scenario.catch.follow_pitch else
                     "along" if scenario.catch.follow_along else "plain")
             self.draws.append((mode, draw, tuple(cells)))
-            return [lands(mode, draw, cell) for cell in cells]
+            return [lands(mode, draw, cell, plan) for cell in cells]
         return mock.patch.object(rehearsal_module, "_landings", run)
 
     def test_candidates(self):
@@ -188,7 +189,7 @@ class MarginTest(unittest.TestCase):
                           ("plain", (3, 1)), ("plain", (3, 4))])
 
     def test_the_candidate_landing_in_most_draws(self):
-        def lands(mode, draw, cell):
+        def lands(mode, draw, cell, plan):
             return cell == (3, 4) or (cell == (1, 1) and draw == "half")
         with self.landings(lands):
             picked = rehearsal_module._with_margin(
@@ -209,12 +210,72 @@ class MarginTest(unittest.TestCase):
         self.assertNotIn(2, MARGIN_NOISE_SEEDS)
 
     def test_a_tie_keeps_the_pick(self):
-        with self.landings(lambda mode, draw, cell: True):
+        with self.landings(lambda mode, draw, cell, plan: True):
             picked = rehearsal_module._with_margin(
                 Scenario(), None, None, None,
                 dc.replace(self.place, places={0.0: self.place.counts}),
                 [self.place])
         self.assertEqual((picked.mode, picked.cell), ("plain", (1, 1)))
+
+    def test_half_the_steps_first(self):
+        # The pick lands in both noise draws, a rival at half the steps and
+        # in one noise draw: the rival (the half step predicts a quarter
+        # step's verdict, FINDINGS §15).
+        def lands(mode, draw, cell, plan):
+            return (draw != "half" if cell == (1, 1) else
+                    draw in ("half", "noise 1001") if cell == (3, 4) else
+                    False)
+        with self.landings(lands):
+            picked = rehearsal_module._with_margin(
+                Scenario(), None, None, None,
+                dc.replace(self.place, places={0.0: self.place.counts}),
+                [self.place])
+        self.assertEqual(picked.cell, (3, 4))
+        self.assertFalse(picked.fragile())
+
+    def widened(self, lands_at_4mm):
+        """_with_margin with PALM_SHIFTS_M where nothing at the plan's place
+        lands at half the steps; the +4 mm place's lattice has the block
+        and its (1, 1) lands everywhere if `lands_at_4mm`. The plan is the
+        place's shift [m]."""
+        def rehearse_modes(scenario, obj, ik, plan, modes):
+            self.rehearsed_places.append(round(1e3 * plan, 3))
+            return dc.replace(self.place if plan == 0.004 else
+                              dc.replace(self.pitch, lattices=()),
+                              counts={"plain": 1})
+
+        def lands(mode, draw, cell, plan):
+            return (lands_at_4mm and plan == 0.004 and cell == (1, 1)
+                    or draw == "noise 1001")
+
+        self.rehearsed_places = []
+        with self.landings(lands), \
+                mock.patch.object(rehearsal_module, "_rehearse_modes",
+                                  rehearse_modes), \
+                mock.patch.object(rehearsal_module, "shifted_along_axis",
+                                  lambda plan, shift_m, ik: plan + shift_m):
+            return rehearsal_module._with_margin(
+                Scenario(), None, None, 0.0,
+                dc.replace(self.place, places={0.0: self.place.counts}),
+                [self.place], shifts=PALM_SHIFTS_M, modes=MODES)
+
+    def test_widened_where_nothing_lands_at_half_the_steps(self):
+        picked = self.widened(lands_at_4mm=True)
+        # every other place rehearsed, the next candidates judged
+        self.assertEqual(self.rehearsed_places, [4.0, -4.0, 8.0, -8.0])
+        self.assertEqual(list(picked.places), [0.0, 4.0, -4.0, 8.0, -8.0])
+        self.assertEqual([m["widened"] for m in picked.margin],
+                         [False] * MARGIN_CANDIDATES
+                         + [True] * MARGIN_CANDIDATES)
+        self.assertEqual((picked.shift_m, picked.plan, picked.cell),
+                         (0.004, 0.004, (1, 1)))
+        self.assertEqual(picked.picked_draws(), list(MARGIN_DRAWS))
+        self.assertFalse(picked.fragile())
+        # Nothing lands at half the steps anywhere: the first pick, fragile.
+        picked = self.widened(lands_at_4mm=False)
+        self.assertEqual((picked.shift_m, picked.cell), (0.0, (1, 1)))
+        self.assertEqual(picked.picked_draws(), ["noise 1001"])
+        self.assertTrue(picked.fragile())
 
 
 # A smaller lattice and fewer margin candidates under test, around the

@@ -435,13 +435,13 @@ class _Phase:
                             f" mm, cell {tuple(c['cell'])}: lands in "
                             f"{len(c['landed_in'])} of {len(MARGIN_DRAWS)} "
                             f"draws ({', '.join(c['landed_in']) or 'none'})")
-            landed = self.rehearsal.picked_draws()
-            if landed is not None and len(landed) < 2:
-                # (every such pick missed when judged at a quarter of the
-                # steps: studies/landing_step/FINDINGS.md §13)
+            if self.rehearsal.fragile():
+                landed = self.rehearsal.picked_draws()
                 self.report(f"warning: the rehearsed catch is fragile: it "
                             f"lands in the target grasp in {len(landed)} of "
-                            f"{len(MARGIN_DRAWS)} draws")
+                            f"{len(MARGIN_DRAWS)} draws "
+                            f"({', '.join(landed) or 'none'}; it needs half "
+                            "the steps and 2 draws)")
             if self.rehearsal.cell is not None:
                 first, self.start_chooser = self.rehearsal.cell, "rehearsal"
                 self.catch_scenario = mode_scenario(self.scenario,

@@ -41,7 +41,13 @@ cells in the target and the waiting palm) are rehearsed again in
 MARGIN_DRAWS: at half the shipped catch and landing steps, and under
 release noise at the shipped level (ThrowNoise.at_level(1)) with the
 rehearsal's own seeds. The throw takes the candidate that lands in the
-target grasp in the most draws (a tie: the earlier candidate).
+target grasp at half the steps and, among those, in the most draws (a tie:
+the earlier candidate): of 56 picks judged at a quarter of the steps, the
+48 that landed at half the steps all landed, the 8 that did not all missed
+(studies/landing_step/FINDINGS.md §15). With `shifts` too, where no
+candidate lands at half the steps, the search widens: every place of
+`shifts` not rehearsed yet is rehearsed, and the MARGIN_CANDIDATES best
+cells not judged yet, over every lattice, are judged in the same draws.
 
 The rehearsal never sees what judges it: a run judged under release noise
 has its own seeds (benchmarks/regrasp_targets.py --noise-level: the trial
@@ -148,6 +154,14 @@ class Rehearsal:
                            for mm, counts in d["places"].items()},
                    margin=list(d["margin"]))
 
+    def fragile(self) -> bool:
+        """Whether the pick's margin was rehearsed and it did not land in
+        the target grasp at half the steps or in fewer than 2 of
+        MARGIN_DRAWS (every such pick missed when judged at a quarter of
+        the steps: studies/landing_step/FINDINGS.md §§13, 15)."""
+        landed = self.picked_draws()
+        return landed is not None and not _holds(landed)
+
     def picked_draws(self) -> list[str] | None:
         """The MARGIN_DRAWS the picked candidate landed in (None: no margin
         rehearsed)."""
@@ -222,15 +236,28 @@ def rehearse(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     best = dc.replace(best, places=places)
     if not margin or best.cell is None:
         return best
-    return _with_margin(scenario, obj, ik, plan, best, rehearsed)
+    return _with_margin(scenario, obj, ik, plan, best, rehearsed,
+                        shifts=shifts, modes=modes)
 
 
-def _candidates(best: Rehearsal, rehearsed) -> list[Rehearsal]:
+def _holds(landed: list[str]) -> bool:
+    """Whether a candidate that landed in `landed` (of MARGIN_DRAWS) is
+    not fragile: it landed at half the steps and in 2 draws or more."""
+    return "half" in landed and len(landed) >= 2
+
+
+def _key(c: Rehearsal) -> tuple:
+    """A candidate's catch mode, place [mm] and cell."""
+    return (c.mode, round(1e3 * c.shift_m, 3), c.cell)
+
+
+def _candidates(best: Rehearsal, rehearsed, judged=()) -> list[Rehearsal]:
     """Up to MARGIN_CANDIDATES picks (each a Rehearsal of its place and
-    mode, with its cell): `best` first, then the cells in the target of
-    every lattice in `rehearsed` (each place's `lattices`, or the place's
-    pick alone), ranked by the cell's robustness, its lattice's count of
-    cells in the target, the waiting palm and the nearer place."""
+    mode, with its cell) not among `judged`: `best` first (unless judged
+    is given), then the cells in the target of every lattice in
+    `rehearsed` (each place's `lattices`, or the place's pick alone),
+    ranked by the cell's robustness, its lattice's count of cells in the
+    target, the waiting palm and the nearer place."""
     ranked = []
     for place in rehearsed:
         for lattice in place.lattices or (place,):
@@ -243,13 +270,13 @@ def _candidates(best: Rehearsal, rehearsed) -> list[Rehearsal]:
                        lattice.mode == "plain", -abs(place.shift_m))
                 ranked.append((key, dc.replace(lattice, cell=cell)))
     ranked.sort(key=lambda entry: entry[0], reverse=True)  # stable
-    first = dc.replace(best, lattices=())
-    out = [first]
+    out = [] if judged else [dc.replace(best, lattices=())]
+    seen = {_key(c) for c in list(judged) + out}
     for _, candidate in ranked:
         if len(out) == MARGIN_CANDIDATES:
             break
-        if (candidate.mode, candidate.shift_m, candidate.cell) != (
-                first.mode, first.shift_m, first.cell):
+        if _key(candidate) not in seen:
+            seen.add(_key(candidate))
             out.append(candidate)
     return out
 
@@ -271,13 +298,51 @@ def _draw_scenario(scenario: Scenario, mode: str, draw: str) -> Scenario:
 
 
 def _with_margin(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
-                 plan: CatchPlan, best: Rehearsal, rehearsed) -> Rehearsal:
-    """`best` or a rival (`_candidates`) that lands in the target grasp in
-    more of MARGIN_DRAWS; its `margin` lists every candidate's draws."""
+                 plan: CatchPlan, best: Rehearsal, rehearsed, shifts=(),
+                 modes=None) -> Rehearsal:
+    """`best` or a rival (`_candidates`) with more margin in MARGIN_DRAWS
+    (see the module's docstring); where none holds (`_holds`), the places
+    of `shifts` not rehearsed yet are rehearsed in `modes` and the next
+    candidates judged too. Its `margin` lists every candidate's draws
+    ("widened": judged in the second round), `places` every place's
+    counts."""
+    places = dict(best.places)
     candidates = _candidates(best, rehearsed)
+    landed = _judge(scenario, obj, ik, plan, candidates)
+    first_round = len(candidates)
+    if shifts and not any(_holds(draws) for draws in landed):
+        for ring in shifts:
+            for shift_m in ring:
+                mm = round(1e3 * shift_m, 3)
+                moved = (None if mm in places
+                         else shifted_along_axis(plan, shift_m, ik))
+                if moved is None:
+                    continue
+                place = dc.replace(
+                    _rehearse_modes(scenario, obj, ik, moved, modes),
+                    shift_m=shift_m, plan=moved)
+                places[mm] = place.counts
+                rehearsed = list(rehearsed) + [place]
+        more = _candidates(best, rehearsed, judged=candidates)
+        landed += _judge(scenario, obj, ik, plan, more)
+        candidates += more
+    record = [{"mode": c.mode, "palm_shift_mm": round(1e3 * c.shift_m, 3),
+               "cell": list(c.cell), "landed_in": landed[k],
+               "widened": k >= first_round}
+              for k, c in enumerate(candidates)]
+    pick = max(range(len(candidates)),
+               key=lambda k: ("half" in landed[k], len(landed[k]), -k))
+    picked = candidates[pick]
+    return dc.replace(picked, places=places, margin=record,
+                      counts=places[round(1e3 * picked.shift_m, 3)])
+
+
+def _judge(scenario: Scenario, obj: ObjectSpec, ik: ArmIk, plan: CatchPlan,
+           candidates) -> list[list[str]]:
+    """The MARGIN_DRAWS each of `candidates` lands in the target grasp in
+    (the candidates at one place and mode share each draw's throw)."""
     landed = [[] for _ in candidates]
     for draw in MARGIN_DRAWS:
-        # The candidates at one place and mode share a throw.
         groups = {}
         for k, c in enumerate(candidates):
             groups.setdefault((c.mode, c.shift_m), []).append(k)
@@ -288,13 +353,7 @@ def _with_margin(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
             for k, hit in zip(members, hits):
                 if hit:
                     landed[k].append(draw)
-    record = [{"mode": c.mode, "palm_shift_mm": round(1e3 * c.shift_m, 3),
-               "cell": list(c.cell), "landed_in": landed[k]}
-              for k, c in enumerate(candidates)]
-    pick = max(range(len(candidates)), key=lambda k: (len(landed[k]), -k))
-    picked = candidates[pick]
-    return dc.replace(picked, places=best.places, margin=record,
-                      counts=best.places[round(1e3 * picked.shift_m, 3)])
+    return landed
 
 
 def _rehearse_modes(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
