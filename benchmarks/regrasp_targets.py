@@ -289,14 +289,14 @@ def main(argv=None) -> int:
             return None
         row = recorded.get(key + (0.0, 0))
         if row is None:
-            raise SystemExit(f"regrasp_targets: error: --rehearsal-from: "
-                             f"{args.rehearsal_from} has no row {key} at "
-                             "noise level 0, expected one per pair run")
+            raise InputError(f"--rehearsal-from: {args.rehearsal_from} has "
+                             f"no row {key} at noise level 0, expected one "
+                             "per pair run")
         if row["scenario_digest"] != scenario_digest(scenario):
-            raise SystemExit(f"regrasp_targets: error: --rehearsal-from: "
-                             f"row {key} was made under another scenario "
-                             "(besides the release noise), expected this "
-                             "run's")
+            raise InputError(f"--rehearsal-from: row {key} of "
+                             f"{args.rehearsal_from} was made under another "
+                             "scenario (besides the release noise), "
+                             "expected this run's")
         # (None where the pair stopped before its rehearsal: refused as out
         # of reach, or no catch point; it stops there again.)
         return row.get("rehearsal")
@@ -316,11 +316,15 @@ def main(argv=None) -> int:
         key = (name, target.kind, target.offset_mm, mode, args.noise_level,
                trial)
         if key not in done:
+            try:
+                replayed = rehearsed(clean, (name, target.kind,
+                                             target.offset_mm, mode))
+            except InputError as e:
+                print(f"regrasp_targets: error: {e}", file=sys.stderr)
+                return 2
             jobs.append((scenario, target, name, mode, args.noise_level,
                          trial, args.max_throws, args.offset_prior,
-                         args.paper_network, args.rehearse,
-                         rehearsed(clean, (name, target.kind,
-                                           target.offset_mm, mode))))
+                         args.paper_network, args.rehearse, replayed))
         elif done[key]["scenario_digest"] != scenario_digest(scenario):
             raise SystemExit(f"{rows_path}: row {key} was made under "
                              "another scenario; move the file away to "

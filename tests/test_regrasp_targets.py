@@ -78,6 +78,28 @@ class RefusalTest(RefusalAssertions, unittest.TestCase):
                                "--targets", "'spin:0'")
             self.assertFalse(Path(out).with_suffix(".jsonl").exists())
 
+    def test_a_recorded_rehearsal_must_match(self):
+        with tempfile.TemporaryDirectory() as d:
+            out, recorded = str(Path(d) / "r"), Path(d) / "m.jsonl"
+            recorded.write_text(json.dumps(
+                ROWS[0] | {"level": 0.0, "trial": 0,
+                           "scenario_digest": "another"}) + "\n")
+            self.assertRefused(["--rehearsal-from", str(recorded),
+                                "--out", out], "--rehearsal-from",
+                               "without --rehearse")
+            pair = ["--objects", ROWS[0]["object"], "--targets",
+                    "{kind}:{offset_mm:g}".format(**ROWS[0]["target"]),
+                    "--modes", ROWS[0]["mode"], "--max-throws", "1"]
+            self.assertRefused(["--rehearse", "--rehearsal-from",
+                                str(recorded), "--out", out] + pair,
+                               "another scenario")
+            self.assertRefused(["--rehearse", "--rehearsal-from",
+                                str(recorded), "--out", out, "--objects",
+                                "table1-row5", "--targets", "flip:0",
+                                "--modes", "first-throw",
+                                "--max-throws", "1"], "has no row")
+            self.assertFalse(Path(out).with_suffix(".jsonl").exists())
+
     def test_convergence_needs_two_files_of_rows(self):
         with tempfile.TemporaryDirectory() as d:
             rows = Path(d) / "rows.jsonl"
