@@ -233,10 +233,10 @@ class MarginTest(unittest.TestCase):
         self.assertEqual(picked.cell, (3, 4))
         self.assertFalse(picked.fragile())
 
-    def widened(self, lands_at_4mm):
-        """_with_margin with PALM_SHIFTS_M where nothing at the plan's place
-        lands at half the steps; the +4 mm place's lattice has the block
-        and its (1, 1) lands everywhere if `lands_at_4mm`. The plan is the
+    def widened(self, lands_at_4mm, elsewhere=("noise 1001",)):
+        """_with_margin with PALM_SHIFTS_M where everything lands in the
+        draws `elsewhere` only; the +4 mm place's lattice has the block and
+        its (1, 1) lands everywhere if `lands_at_4mm`. The plan is the
         place's shift [m]."""
         def rehearse_modes(scenario, obj, ik, plan, modes):
             self.rehearsed_places.append(round(1e3 * plan, 3))
@@ -246,7 +246,7 @@ class MarginTest(unittest.TestCase):
 
         def lands(mode, draw, cell, plan):
             return (lands_at_4mm and plan == 0.004 and cell == (1, 1)
-                    or draw == "noise 1001")
+                    or draw in elsewhere)
 
         self.rehearsed_places = []
         with self.landings(lands), \
@@ -259,7 +259,7 @@ class MarginTest(unittest.TestCase):
                 dc.replace(self.place, places={0.0: self.place.counts}),
                 [self.place], shifts=PALM_SHIFTS_M, modes=MODES)
 
-    def test_widened_where_nothing_lands_at_half_the_steps(self):
+    def test_widened_where_nothing_lands_in_every_draw(self):
         picked = self.widened(lands_at_4mm=True)
         # every other place rehearsed, the next candidates judged
         self.assertEqual(self.rehearsed_places, [4.0, -4.0, 8.0, -8.0])
@@ -276,6 +276,16 @@ class MarginTest(unittest.TestCase):
         self.assertEqual((picked.shift_m, picked.cell), (0.0, (1, 1)))
         self.assertEqual(picked.picked_draws(), ["noise 1001"])
         self.assertTrue(picked.fragile())
+        # Two draws, half the steps among them: not fragile, but widened.
+        picked = self.widened(lands_at_4mm=True,
+                              elsewhere=("half", "noise 1002"))
+        self.assertEqual(len(picked.margin), 2 * MARGIN_CANDIDATES)
+        self.assertEqual((picked.shift_m, picked.cell), (0.004, (1, 1)))
+        # One candidate in every draw: nothing more rehearsed.
+        picked = self.widened(lands_at_4mm=False,
+                              elsewhere=MARGIN_DRAWS)
+        self.assertEqual(len(picked.margin), MARGIN_CANDIDATES)
+        self.assertEqual(self.rehearsed_places, [])
 
 
 # A smaller lattice and fewer margin candidates under test, around the
