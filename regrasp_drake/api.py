@@ -215,8 +215,9 @@ def learn(obj: ObjectSpec, *, scenario: Scenario | None = None,
     flight; not at_release) is rehearsed in simulation at a lattice of 25
     cells in each of three catch modes before the throw (the palm moved
     4-8 mm along the axis where no mode lands) and starts from the cell
-    that lands in the most of its margin's draws (half the step, release
-    noise) among the most robust (learning/rehearsal.py; one to three
+    that lands in its margin's draws (half the step first, then release
+    noise) among the most robust, the palm's other places searched too
+    where none lands in every draw (learning/rehearsal.py; one to ten
     minutes on two cores)."""
     if planner not in PLANNER_CHOICES:
         raise field_error("planner", planner, " or ".join(PLANNER_CHOICES))

@@ -194,9 +194,11 @@ def _add_first_throw_args(p: argparse.ArgumentParser) -> None:
                         "object along the palm) before the "
                         "throw, with the palm moved 4-8 mm along the axis "
                         "where no mode lands, and start from the cell that "
-                        "lands in the most draws of its margin (half the "
-                        "step, release noise) among the most robust "
-                        "(learning/rehearsal.py; not with --at-release)")
+                        "lands in the draws of its margin (half the step "
+                        "first, then release noise) among the most robust, "
+                        "the palm's other places searched too where none "
+                        "lands in every draw (learning/rehearsal.py; not "
+                        "with --at-release)")
     p.add_argument("--at-release", action="store_true",
                    help="no watching throw: each throw plans its catch when "
                         "it releases the object, from the object's state "
