@@ -220,7 +220,7 @@ class MarginTest(unittest.TestCase):
     def test_half_the_steps_first(self):
         # The pick lands in both noise draws, a rival at half the steps and
         # in one noise draw: the rival (the half step predicts a quarter
-        # step's verdict, FINDINGS §15).
+        # step's verdict, FINDINGS §14).
         def lands(mode, draw, cell, plan):
             return (draw != "half" if cell == (1, 1) else
                     draw in ("half", "noise 1001") if cell == (3, 4) else

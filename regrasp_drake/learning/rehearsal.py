@@ -44,12 +44,13 @@ rehearsal's own seeds. The throw takes the candidate that lands in the
 target grasp at half the steps and, among those, in the most draws (a tie:
 the earlier candidate): of 56 picks judged at a quarter of the steps, the
 48 that landed at half the steps all landed, the 8 that did not all missed
-(studies/landing_step/FINDINGS.md §15). With `shifts` too, where no
+(studies/landing_step/FINDINGS.md §14). With `shifts` too, where no
 candidate lands in every draw, the search widens: every place of `shifts`
 not rehearsed yet is rehearsed, and the MARGIN_CANDIDATES best cells not
 judged yet, over every lattice, are judged in the same draws (judged
 under release noise, picks that landed in all 3 draws held in 94 % of the
-noisy throws, those that landed in 2 in 47 %: §15).
+noisy throws, those that landed in 2 in 47 %: §14; what the wider
+search finds: §15).
 
 The rehearsal never sees what judges it: a run judged under release noise
 has its own seeds (benchmarks/regrasp_targets.py --noise-level: the trial
@@ -160,7 +161,7 @@ class Rehearsal:
         """Whether the pick's margin was rehearsed and it did not land in
         the target grasp at half the steps or in fewer than 2 of
         MARGIN_DRAWS (every such pick missed when judged at a quarter of
-        the steps: studies/landing_step/FINDINGS.md §§13, 15)."""
+        the steps: studies/landing_step/FINDINGS.md §§13-14)."""
         landed = self.picked_draws()
         return landed is not None and not _holds(landed)
 
