@@ -259,7 +259,7 @@ class MarginTest(unittest.TestCase):
                 dc.replace(self.place, places={0.0: self.place.counts}),
                 [self.place], shifts=PALM_SHIFTS_M, modes=MODES)
 
-    def test_widened_where_nothing_lands_in_every_draw(self):
+    def test_widened_where_nothing_holds(self):
         picked = self.widened(lands_at_4mm=True)
         # every other place rehearsed, the next candidates judged
         self.assertEqual(self.rehearsed_places, [4.0, -4.0, 8.0, -8.0])
@@ -276,14 +276,14 @@ class MarginTest(unittest.TestCase):
         self.assertEqual((picked.shift_m, picked.cell), (0.0, (1, 1)))
         self.assertEqual(picked.picked_draws(), ["noise 1001"])
         self.assertTrue(picked.fragile())
-        # Two draws, half the steps among them: not fragile, but widened.
+        # Two draws without half the steps: fragile, widened.
         picked = self.widened(lands_at_4mm=True,
-                              elsewhere=("half", "noise 1002"))
+                              elsewhere=("noise 1001", "noise 1002"))
         self.assertEqual(len(picked.margin), 2 * MARGIN_CANDIDATES)
         self.assertEqual((picked.shift_m, picked.cell), (0.004, (1, 1)))
-        # One candidate in every draw: nothing more rehearsed.
-        picked = self.widened(lands_at_4mm=False,
-                              elsewhere=MARGIN_DRAWS)
+        # Half the steps and a noise draw: it holds, nothing more rehearsed.
+        picked = self.widened(lands_at_4mm=True,
+                              elsewhere=("half", "noise 1002"))
         self.assertEqual(len(picked.margin), MARGIN_CANDIDATES)
         self.assertEqual(self.rehearsed_places, [])
 

@@ -45,12 +45,12 @@ target grasp at half the steps and, among those, in the most draws (a tie:
 the earlier candidate): of 56 picks judged at a quarter of the steps, the
 48 that landed at half the steps all landed, the 8 that did not all missed
 (studies/landing_step/FINDINGS.md §14). With `shifts` too, where no
-candidate lands in every draw, the search widens: every place of `shifts`
-not rehearsed yet is rehearsed, and the MARGIN_CANDIDATES best cells not
-judged yet, over every lattice, are judged in the same draws (judged
-under release noise, picks that landed in all 3 draws held in 94 % of the
-noisy throws, those that landed in 2 in 47 %: §14; what the wider
-search finds: §15).
+candidate holds (lands at half the steps and in 2 draws or more), the
+search widens: every place of `shifts` not rehearsed yet is rehearsed,
+and the MARGIN_CANDIDATES best cells not judged yet, over every lattice,
+are judged in the same draws (§15: it found a candidate that holds in 6
+of the 8 pairs with none; widening also where none lands in all 3 draws
+found none in 5 pairs tried, at 7-13 minutes each).
 
 The rehearsal never sees what judges it: a run judged under release noise
 has its own seeds (benchmarks/regrasp_targets.py --noise-level: the trial
@@ -304,17 +304,16 @@ def _with_margin(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
                  plan: CatchPlan, best: Rehearsal, rehearsed, shifts=(),
                  modes=None) -> Rehearsal:
     """`best` or a rival (`_candidates`) with more margin in MARGIN_DRAWS
-    (see the module's docstring); where none lands in every draw, the
-    places of `shifts` not rehearsed yet are rehearsed in `modes` and the
-    next candidates judged too. Its `margin` lists every candidate's draws
+    (see the module's docstring); where none holds (`_holds`), the places
+    of `shifts` not rehearsed yet are rehearsed in `modes` and the next
+    candidates judged too. Its `margin` lists every candidate's draws
     ("widened": judged in the second round), `places` every place's
     counts."""
     places = dict(best.places)
     candidates = _candidates(best, rehearsed)
     landed = _judge(scenario, obj, ik, plan, candidates)
     first_round = len(candidates)
-    if shifts and not any(len(draws) == len(MARGIN_DRAWS)
-                          for draws in landed):
+    if shifts and not any(_holds(draws) for draws in landed):
         for ring in shifts:
             for shift_m in ring:
                 mm = round(1e3 * shift_m, 3)
