@@ -217,8 +217,8 @@ def learn(obj: ObjectSpec, *, scenario: Scenario | None = None,
     4-8 mm along the axis where no mode lands) and starts from the cell
     that lands in its margin's draws (half the step first, then release
     noise) among the most robust, the palm's other places searched too
-    where none lands in every draw (learning/rehearsal.py; one to ten
-    minutes on two cores)."""
+    where no candidate lands at half the step and in 2 draws
+    (learning/rehearsal.py; one to ten minutes on two cores)."""
     if planner not in PLANNER_CHOICES:
         raise field_error("planner", planner, " or ".join(PLANNER_CHOICES))
     watch = _watch(watch, first_throw, "learn")

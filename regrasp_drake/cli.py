@@ -196,9 +196,9 @@ def _add_first_throw_args(p: argparse.ArgumentParser) -> None:
                         "where no mode lands, and start from the cell that "
                         "lands in the draws of its margin (half the step "
                         "first, then release noise) among the most robust, "
-                        "the palm's other places searched too where none "
-                        "lands in every draw (learning/rehearsal.py; not "
-                        "with --at-release)")
+                        "the palm's other places searched too where no "
+                        "candidate lands at half the step and in 2 draws "
+                        "(learning/rehearsal.py; not with --at-release)")
     p.add_argument("--at-release", action="store_true",
                    help="no watching throw: each throw plans its catch when "
                         "it releases the object, from the object's state "

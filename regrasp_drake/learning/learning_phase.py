@@ -205,9 +205,9 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
     first-throw mode (no watching throw), or None. rehearse: with it, the
     first catch (planned from the watched or the predicted flight; not
     `at_release`) is rehearsed in simulation before the throw at a lattice of
-    cells in each catch mode (the palm waiting, or turning with the
-    object's pitch) and starts from the most robust one in the target grasp,
-    in that cell's mode (learning/rehearsal.py; a chooser of its own,
+    cells in each catch mode (rehearsal.MODES), at the palm's places where
+    none lands, and starts from the cell with the most margin in the
+    target grasp, in that cell's mode (learning/rehearsal.py; a chooser of its own,
     `chosen_by` "rehearsal"). rehearsed: with rehearse, a rehearsal of this
     same first catch recorded before (a LearningResult's `rehearsal`, made
     under this scenario without its release noise), replayed instead of
