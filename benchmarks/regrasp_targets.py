@@ -37,6 +37,7 @@ from regrasp_drake.learning.flight_predictor import FlightPredictor
 from regrasp_drake.learning.learning_phase import NoCatchPoint, learn
 from regrasp_drake.learning.offset_prior import OffsetPrior
 from regrasp_drake.learning.planner import PAPER_NETWORK
+from regrasp_drake.learning.rehearsal import rehearsal_scenario
 from regrasp_drake.learning.table1 import object_names
 from regrasp_drake.paths import MODELS_DIR
 from regrasp_drake.planning import grasp
@@ -112,7 +113,9 @@ def _job(task) -> dict:
             "scenario_digest": scenario_digest(scenario),
             "planners": ("paper" if paper else "shipped")
             + ("+rehearsal" if rehearse else ""),
-            "rehearsal_replayed": rehearsed is not None} | run_one(
+            "rehearsal_replayed": rehearsed is not None,
+            "rehearsal_digest": (scenario_digest(rehearsal_scenario(scenario))
+                                 if rehearse else None)} | run_one(
         scenario, resolve_object(name=name), _MODELS["model"], _MODELS["ik"],
         mode, max_throws, _MODELS["predictor"], _MODELS["prior"],
         PAPER_NETWORK if paper else None, rehearse, rehearsed)
@@ -247,9 +250,9 @@ def main(argv=None) -> int:
     parser.add_argument("--rehearsal-from", type=Path, metavar="ROWS",
                         help="with --rehearse: replay each pair's rehearsal "
                              "from the rows of a run without release noise "
-                             "(a .jsonl of this script, same scenario but "
-                             "for the noise) instead of rehearsing again; "
-                             "the rehearsal never sees the release noise")
+                             "(a .jsonl of this script) instead of "
+                             "rehearsing again: the rehearsal sees neither "
+                             "the release noise nor the judged steps")
     parser.add_argument("--workers", type=int, default=1,
                         help="episodes run side by side in forked processes "
                              "(default 1)")
@@ -292,11 +295,18 @@ def main(argv=None) -> int:
             raise InputError(f"--rehearsal-from: {args.rehearsal_from} has "
                              f"no row {key} at noise level 0, expected one "
                              "per pair run")
-        if row["scenario_digest"] != scenario_digest(scenario):
+        # What the rehearsal simulates (rehearsal_scenario: the shipped
+        # steps, no noise) must match; rows without its digest, the whole
+        # scenario but for the noise.
+        if (row["rehearsal_digest"] != scenario_digest(
+                rehearsal_scenario(scenario))
+                if row.get("rehearsal_digest") is not None
+                else row["scenario_digest"] != scenario_digest(scenario)):
             raise InputError(f"--rehearsal-from: row {key} of "
-                             f"{args.rehearsal_from} was made under another "
-                             "scenario (besides the release noise), "
-                             "expected this run's")
+                             f"{args.rehearsal_from} was rehearsed under "
+                             "another scenario, expected this run's (the "
+                             "judged steps and the release noise may "
+                             "differ)")
         # (None where the pair stopped before its rehearsal: refused as out
         # of reach, or no catch point; it stops there again.)
         return row.get("rehearsal")

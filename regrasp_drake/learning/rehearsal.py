@@ -42,9 +42,9 @@ MARGIN_DRAWS: at half the shipped catch and landing steps, and under
 release noise at the shipped level (ThrowNoise.at_level(1)) with the
 rehearsal's own seeds. The throw takes the candidate that lands in the
 target grasp at half the steps and, among those, in the most draws (a tie:
-the earlier candidate): of 56 picks judged at a quarter of the steps, the
-48 that landed at half the steps all landed, the 8 that did not all missed
-(studies/landing_step/FINDINGS.md §14). With `shifts` too, where no
+the earlier candidate): judged at a step twice finer than the half draw,
+47 of the 48 picks that landed at half the steps landed, 3 of the 8 that
+did not (studies/landing_step/FINDINGS.md §14). With `shifts` too, where no
 candidate holds (lands at half the steps and in 2 draws or more), the
 search widens: every place of `shifts` not rehearsed yet is rehearsed,
 and the MARGIN_CANDIDATES best cells not judged yet, over every lattice,
@@ -55,7 +55,9 @@ found none in 5 pairs tried, at 7-13 minutes each).
 The rehearsal never sees what judges it: a run judged under release noise
 has its own seeds (benchmarks/regrasp_targets.py --noise-level: the trial
 numbers, never MARGIN_NOISE_SEEDS), and one judged at a finer step
-(--scenario-text) a step finer than the rehearsal's half.
+(--scenario-text) a step finer than the rehearsal's half: the half draw
+runs at 0.0625 ms landing and 0.25 ms target catch, so a judge finer than
+that needs plant_config.time_step 0.125 ms (FINDINGS §14).
 """
 
 import copy
@@ -160,8 +162,8 @@ class Rehearsal:
     def fragile(self) -> bool:
         """Whether the pick's margin was rehearsed and it did not land in
         the target grasp at half the steps or in fewer than 2 of
-        MARGIN_DRAWS (every such pick missed when judged at a quarter of
-        the steps: studies/landing_step/FINDINGS.md §§13-14)."""
+        MARGIN_DRAWS (judged at a step finer than the draws, 3 of 8 such
+        picks landed: studies/landing_step/FINDINGS.md §§13-14)."""
         landed = self.picked_draws()
         return landed is not None and not _holds(landed)
 
