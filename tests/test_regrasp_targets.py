@@ -93,6 +93,15 @@ class RefusalTest(RefusalAssertions, unittest.TestCase):
             self.assertRefused(["--rehearse", "--rehearsal-from",
                                 str(recorded), "--out", out] + pair,
                                "another scenario")
+            # A row that records what its rehearsal simulated is checked on
+            # that alone (the judged steps may differ), and refused here.
+            recorded.write_text(json.dumps(
+                ROWS[0] | {"level": 0.0, "trial": 0,
+                           "scenario_digest": "another",
+                           "rehearsal_digest": "another too"}) + "\n")
+            self.assertRefused(["--rehearse", "--rehearsal-from",
+                                str(recorded), "--out", out] + pair,
+                               "rehearsed under another scenario")
             self.assertRefused(["--rehearse", "--rehearsal-from",
                                 str(recorded), "--out", out, "--objects",
                                 "table1-row5", "--targets", "flip:0",
