@@ -127,6 +127,11 @@ def pair_key(r: dict) -> tuple:
             r["mode"])
 
 
+def row_key(r: dict) -> tuple:
+    """A row's pair (pair_key), noise level and trial."""
+    return pair_key(r) + (r.get("level", 0.0), r.get("trial", 0))
+
+
 def landing(rows: list[dict]) -> dict:
     """How the reachable rows in `rows` ended: the share in the target grasp;
     of those held the right way round (the axis within 90° of the target's
@@ -277,9 +282,7 @@ def main(argv=None) -> int:
                              "without --rehearse, expected it with "
                              "--rehearse")
         recorded = ({} if args.rehearsal_from is None
-                    else read_rows(args.rehearsal_from, key=lambda r: (
-                        pair_key(r) + (r.get("level", 0.0),
-                                       r.get("trial", 0)))))
+                    else read_rows(args.rehearsal_from, key=row_key))
     except InputError as e:
         print(f"regrasp_targets: error: {e}", file=sys.stderr)
         return 2
@@ -310,10 +313,6 @@ def main(argv=None) -> int:
         # (None where the pair stopped before its rehearsal: refused as out
         # of reach, or no catch point; it stops there again.)
         return row.get("rehearsal")
-
-    def row_key(r):
-        return (r["object"], r["target"]["kind"], r["target"]["offset_mm"],
-                r["mode"], r.get("level", 0.0), r.get("trial", 0))
 
     done = read_rows(rows_path, key=row_key)
     jobs = []
