@@ -30,14 +30,9 @@ from regrasp_drake.parameter_space import (  # noqa: F401 (nearest_cell: re-expo
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.progress import bar as progress_bar
 from regrasp_drake.station.scenario import load_scenario, scenario_digest
-from regrasp_drake.throw_catch import plan_catches, watch
+from regrasp_drake.throw_catch import plan_at_moment, watch
 from regrasp_drake.world.objects import resolve_object
 from regrasp_drake.world.robot import ARM_LINKS, FINGER_LINKS
-
-# Catch points of one object are at least this far apart in time (s): the
-# object falls some 10 cm and turns some 0.2 rad between them, so the hand
-# meets it at another speed and attitude.
-CATCH_POINT_SEPARATION_S = 0.03
 
 
 # ---- success maps ----------------------------------------------------------
@@ -46,15 +41,8 @@ def plan_object(scenario, obj, ik, catch_point: int = 1):
     the `catch_point`-th catch point, counted as the data set counts them
     (reachable moments, best first, at least CATCH_POINT_SEPARATION_S
     apart). Raises InputError when the flight has fewer."""
-    plans = plan_catches(scenario, obj, ik, watch(scenario, obj, ik),
-                         count=catch_point,
-                         min_separation_s=CATCH_POINT_SEPARATION_S)
-    if len(plans) < catch_point:
-        raise InputError(
-            f"--catch-point: got {catch_point}, expected at most "
-            f"{len(plans)}: object {obj.name} has {len(plans)} reachable "
-            f"catch point(s) at least {CATCH_POINT_SEPARATION_S} s apart")
-    return plans[catch_point - 1]
+    return plan_at_moment(scenario, obj, ik, watch(scenario, obj, ik),
+                          catch_point, field="--catch-point")
 
 
 def append_rows(function, tasks, path: Path, done: dict, key, *,

@@ -41,6 +41,11 @@ from regrasp_drake.station.catch_state_machine import Phase, lowered_pose
 from regrasp_drake.station.scenario import Scenario, target_of
 from regrasp_drake.world.objects import ObjectSpec
 
+# A flight's catch moments are at least this far apart in time (s): the
+# object falls some 10 cm and turns some 0.2 rad between them, so the hand
+# meets it at another speed and attitude.
+CATCH_POINT_SEPARATION_S = 0.03
+
 
 @dc.dataclass
 class CatchPlan:
@@ -52,6 +57,10 @@ class CatchPlan:
     # the plan is from a simulated throw's flight (`with_release`): what a
     # catching throw compares its own release with (`release_correction`).
     release_state: np.ndarray | None = None
+    # The plan's rank among its flight's catch moments (`plan_catches`, at
+    # least CATCH_POINT_SEPARATION_S apart): 1, the best; a catching throw
+    # corrects its palm at its own release at the same moment.
+    moment: int = 1
 
     def as_dict(self) -> dict:
         return {"catch_point": self.catch_point.as_dict(),
@@ -245,7 +254,8 @@ def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
                     f"{c.max_move_torque_fraction})")
                 continue
             plans.append(CatchPlan(catch_point=point, X_WG=X_WG,
-                                   q_grasp=list(result.q), side=side))
+                                   q_grasp=list(result.q), side=side,
+                                   moment=len(plans) + 1))
             break
         if len(plans) == count:
             break
@@ -255,6 +265,22 @@ def plan_catches(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
         f"; and {len(reasons) - 4} more" if len(reasons) > 4 else "")
     raise InputError(f"object {obj.name}: no reachable catch point among "
                      f"{len(points)} moments ({shown})")
+
+
+def plan_at_moment(scenario: Scenario, obj: ObjectSpec, ik: ArmIk, flight,
+                   moment: int, *, field: str = "catch point") -> CatchPlan:
+    """The plan at the flight's `moment`-th catch moment (plan_catches'
+    ranking, moments at least CATCH_POINT_SEPARATION_S apart; 1: the
+    `plan_catch` plan). Raises InputError when the flight has fewer (naming
+    `field` as the one asking for the moment)."""
+    plans = plan_catches(scenario, obj, ik, flight, count=moment,
+                         min_separation_s=CATCH_POINT_SEPARATION_S)
+    if len(plans) < moment:
+        raise InputError(
+            f"{field}: got {moment}, expected at most {len(plans)}: "
+            f"object {obj.name} has {len(plans)} reachable catch point(s) "
+            f"at least {CATCH_POINT_SEPARATION_S} s apart")
+    return plans[moment - 1]
 
 
 def shifted_along_axis(plan: CatchPlan, shift_m: float,
@@ -335,14 +361,14 @@ def release_correction(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     release time the object's state seen then and the one the plan was made
     from (`plan.release_state`: the watching throw's, or the flight
     predictor's) are each propagated in free flight
-    (`free_flight.flight_from_release`, no simulation) and planned
-    (`plan_catch`); the watched palm moves by the difference of the two
-    plans' palms (position and turn), so the closed-form flight's own error
-    cancels, and follows the object as this release's plan has it
-    (`follow.plan_follow`). A release equal to the watched one bit for bit
-    (every throw without noise) leaves the plan untouched. `parameters`
-    (h_catch, h_down) stay (None: the MLP system's, which stay too);
-    `record`, a ReleaseCorrection, is filled in."""
+    (`free_flight.flight_from_release`, no simulation) and planned at the
+    plan's catch moment (`plan_at_moment`); the watched palm moves by the
+    difference of the two plans' palms (position and turn), so the
+    closed-form flight's own error cancels, and follows the object as this
+    release's plan has it (`follow.plan_follow`). A release equal to the
+    watched one bit for bit (every throw without noise) leaves the plan
+    untouched. `parameters` (h_catch, h_down) stay (None: the MLP system's,
+    which stay too); `record`, a ReleaseCorrection, is filled in."""
     record = ReleaseCorrection() if record is None else record
     nominal = []  # computed once, on the first release that differs
 
@@ -354,15 +380,17 @@ def release_correction(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
             record.how = "same release"
             return None
         try:
-            seen = plan_catch(scenario, obj, ik,
-                              flight_from_release(state, t, obj, scenario))
+            seen = plan_at_moment(scenario, obj, ik,
+                                  flight_from_release(state, t, obj, scenario),
+                                  plan.moment)
         except InputError:
             record.how = "kept"
             return None
         if not nominal:
-            nominal.append(plan_catch(
+            nominal.append(plan_at_moment(
                 scenario, obj, ik,
-                flight_from_release(plan.release_state, t, obj, scenario)))
+                flight_from_release(plan.release_state, t, obj, scenario),
+                plan.moment))
         X_WG = seen.X_WG
         record.how = "replanned"
         if seen.side == nominal[0].side:

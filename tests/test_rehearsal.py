@@ -3,6 +3,7 @@ the throw it rehearses when nothing differs."""
 
 import dataclasses as dc
 import unittest
+from types import SimpleNamespace
 from unittest import mock
 
 import numpy as np
@@ -286,6 +287,90 @@ class MarginTest(unittest.TestCase):
                               elsewhere=("half", "noise 1002"))
         self.assertEqual(len(picked.margin), MARGIN_CANDIDATES)
         self.assertEqual(self.rehearsed_places, [])
+
+
+class LaterMomentTest(unittest.TestCase):
+    """Where no place has a candidate that holds, the flight's later catch
+    moment (the lattices and landings given, as in MarginTest)."""
+
+    LATER = SimpleNamespace(moment=2)  # the plan at the second moment
+
+    def run_with(self, lattices, lands):
+        """rehearse() with margin, PALM_SHIFTS_M and the later moment:
+        `lattices` maps a place (its shift in mm, the plan being the shift
+        itself) or "later" to its cells in the target in every mode;
+        lands(place, draw, cell) says where the margin's draws land."""
+        def place(plan):
+            return "later" if plan is self.LATER else round(1e3 * plan, 3)
+
+        def rehearse_modes(scenario, obj, ik, plan, modes):
+            self.rehearsed.append(place(plan))
+            in_target = PalmPlaceTest.lattice(lattices.get(place(plan), []))
+            best = rehearsal_module.label_cell(in_target)
+            only = Rehearsal(in_target=in_target, mode="plain",
+                             cell=None if best is None else (
+                                 LATTICE_ROWS[best[0]],
+                                 LATTICE_COLUMNS[best[1]]))
+            return dc.replace(only, counts={"plain": int(in_target.sum())},
+                              lattices=(only,))
+
+        def landings(scenario, obj, ik, plan, cells):
+            noise = scenario.throw.noise
+            draw = "half" if noise.is_zero() else f"noise {noise.seed}"
+            return [lands(place(plan), draw, cell) for cell in cells]
+
+        self.rehearsed = []
+        with mock.patch.object(rehearsal_module, "_rehearse_modes",
+                               rehearse_modes), \
+                mock.patch.object(rehearsal_module, "_landings", landings), \
+                mock.patch.object(rehearsal_module, "shifted_along_axis",
+                                  lambda plan, shift_m, ik: plan + shift_m):
+            return rehearse(Scenario(), None, None, 0.0, modes=MODES,
+                            shifts=PALM_SHIFTS_M, margin=True,
+                            later=[self.LATER])
+
+    BLOCK = [(i, j) for i in range(3) for j in range(3)]
+
+    def test_no_cell_at_any_place(self):
+        picked = self.run_with({"later": self.BLOCK},
+                               lambda place, draw, cell: place == "later")
+        self.assertEqual(self.rehearsed,
+                         [0.0, 4.0, -4.0, 8.0, -8.0, "later"])
+        self.assertEqual((picked.moment, picked.plan, picked.shift_m),
+                         (2, self.LATER, 0.0))
+        self.assertEqual(picked.picked_draws(), list(MARGIN_DRAWS))
+        d = picked.as_dict()
+        self.assertEqual((d["catch_point"], d["catch_points"], d["by_mode"]),
+                         (2, {"2": {"plain": 9}}, {"plain": 9}))
+        self.assertEqual({m["catch_point"] for m in d["margin"]}, {2})
+        # Read back: the later moment's plan, from the plans given.
+        read = Rehearsal.from_dict(d, 0.0, None, later=[self.LATER])
+        self.assertEqual((read.plan, read.moment, read.cell),
+                         (self.LATER, 2, picked.cell))
+        self.assertEqual(read.as_dict(), d)
+        with self.assertRaisesRegex(ValueError, "catch_point: got 2"):
+            Rehearsal.from_dict(d, 0.0, None)
+
+    def test_after_the_places(self):
+        # A cell at the plan's place that lands in one noise draw only:
+        # every place, then the later moment, whose block holds.
+        picked = self.run_with(
+            {0.0: [(1, 1)], "later": self.BLOCK},
+            lambda place, draw, cell: (place == "later"
+                                       or draw == "noise 1001"))
+        self.assertEqual(self.rehearsed,
+                         [0.0, 4.0, -4.0, 8.0, -8.0, "later"])
+        self.assertEqual(picked.moment, 2)
+        self.assertFalse(picked.fragile())
+        self.assertEqual([m.get("catch_point", 1) for m in picked.margin],
+                         [1, 2, 2, 2, 2])
+        # A candidate at the plan's place that holds: no later moment.
+        picked = self.run_with(
+            {0.0: [(1, 1)], "later": self.BLOCK},
+            lambda place, draw, cell: True)
+        self.assertEqual(self.rehearsed, [0.0])
+        self.assertEqual((picked.moment, picked.as_dict()["catch_points"]),
+                         (1, {}))
 
 
 # A smaller lattice and fewer margin candidates under test, around the

@@ -61,10 +61,12 @@ from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.progress import bar as progress_bar
 from regrasp_drake.station.scenario import load_scenario, with_target
 from regrasp_drake.station.throw import free_time_s
-from regrasp_drake.throw_catch import plan_catches, watch
+from regrasp_drake.throw_catch import (
+    CATCH_POINT_SEPARATION_S,
+    plan_catches,
+    watch,
+)
 from regrasp_drake.world.objects import CATALOGUE_PATH, resolve_object
-
-CATCH_POINT_SEPARATION_S = grid.CATCH_POINT_SEPARATION_S
 
 
 # ---- generation --------------------------------------------------------------

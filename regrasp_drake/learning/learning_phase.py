@@ -89,6 +89,7 @@ from regrasp_drake.learning.rehearsal import (
     MODES,
     PALM_SHIFTS_M,
     Rehearsal,
+    later_moments,
     mode_scenario,
     rehearse,
 )
@@ -336,6 +337,9 @@ class _Phase:
         self.watched: EpisodeResult | None = None
         self.plan: CatchPlan | None = None
         self.first_plan: CatchPlan | None = None
+        # The flight the first plan is from (predicted or watched): its
+        # later catch moments are the rehearsal's too.
+        self.flight = None
         self.search: Search | None = None
         self.features = self.raw = self.prediction = None
         self.network_cell = None  # the network's cell for the plan
@@ -378,6 +382,8 @@ class _Phase:
             flight_predictor.check_scenario(self.scenario)
             try:
                 plan = flight_predictor.plan(self.obj, self.scenario, self.ik)
+                self.flight = flight_predictor.as_watched(self.obj,
+                                                          self.scenario)
                 self.report("no watching throw: the catch is planned from "
                             "the predicted flight")
                 self.predicted = True
@@ -389,6 +395,7 @@ class _Phase:
             watched = self.watch()
             try:
                 plan = plan_watched(self.scenario, self.obj, self.ik, watched)
+                self.flight = watched
             except InputError as e:
                 raise NoCatchPoint(str(e), throws=1,
                                    sim_time_s=watched.sim_time_s,
@@ -419,20 +426,31 @@ class _Phase:
         first = self.planner.first_cell(self.obj, plan, self.network_cell)
         self.start_chooser = self.planner.name
         if self.rehearse and self.rehearsal is None:
+            later = later_moments(self.scenario, self.obj, self.ik,
+                                  self.flight, self.palm_shift_m)
             self.rehearsal = (
-                Rehearsal.from_dict(self.rehearsed, plan, self.ik)
+                Rehearsal.from_dict(self.rehearsed, plan, self.ik, later)
                 if self.rehearsed is not None
                 else rehearse(self.scenario, self.obj, self.ik, plan,
-                              modes=MODES, shifts=PALM_SHIFTS_M, margin=True))
+                              modes=MODES, shifts=PALM_SHIFTS_M, margin=True,
+                              later=later))
             for mm, by_mode in self.rehearsal.places.items():
                 counts = ", ".join(f"{mode} {n}"
                                    for mode, n in by_mode.items())
                 self.report(f"rehearsed (palm {mm:+g} mm along the axis): "
                             f"lattice cells in the target grasp of "
                             f"{self.rehearsal.in_target.size}: {counts}")
+            for k, by_mode in self.rehearsal.moments.items():
+                counts = ", ".join(f"{mode} {n}"
+                                   for mode, n in by_mode.items())
+                self.report(f"rehearsed (catch point {k}): lattice cells "
+                            f"in the target grasp of "
+                            f"{self.rehearsal.in_target.size}: {counts}")
             for c in self.rehearsal.margin:
+                moment = c.get("catch_point", 1)
+                at = f", catch point {moment}" if moment > 1 else ""
                 self.report(f"margin: {c['mode']} at {c['palm_shift_mm']:+g}"
-                            f" mm, cell {tuple(c['cell'])}: lands in "
+                            f" mm{at}, cell {tuple(c['cell'])}: lands in "
                             f"{len(c['landed_in'])} of {len(MARGIN_DRAWS)} "
                             f"draws ({', '.join(c['landed_in']) or 'none'})")
             if self.rehearsal.fragile():

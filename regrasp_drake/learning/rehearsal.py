@@ -50,7 +50,11 @@ search widens: every place of `shifts` not rehearsed yet is rehearsed,
 and the MARGIN_CANDIDATES best cells not judged yet, over every lattice,
 are judged in the same draws (§15: it found a candidate that holds in 6
 of the 8 pairs with none; widening also where none lands in all 3 draws
-found none in 5 pairs tried, at 7-13 minutes each).
+found none in 5 pairs tried, at 7-13 minutes each). With `later` too,
+where no place has a cell in the target, or none of their candidates
+holds, the flight's later catch moments (`later_moments`) are rehearsed
+in every mode at their own place, and their best cells judged: the throw
+may then catch the object at another moment of its fall.
 
 The rehearsal never sees what judges it: a run judged under release noise
 has its own seeds (benchmarks/regrasp_targets.py --noise-level: the trial
@@ -67,6 +71,7 @@ import numpy as np
 
 from regrasp_drake.episode.branching import run_cells
 from regrasp_drake.episode.episode import Episode, ThrowCache
+from regrasp_drake.errors import InputError
 from regrasp_drake.learning.labels import label_cell, robustness
 from regrasp_drake.parameter_space import (
     H_CATCH_VALUES,
@@ -78,8 +83,10 @@ from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.station.scenario import Scenario, ThrowNoise
 from regrasp_drake.throw_catch import (
     CatchPlan,
+    plan_at_moment,
     release_correction,
     shifted_along_axis,
+    with_release,
 )
 from regrasp_drake.world.object_model import ObjectSpec
 
@@ -104,6 +111,11 @@ PALM_SHIFTS_M = ((0.004, -0.004), (0.008, -0.008))
 MARGIN_CANDIDATES = 4
 MARGIN_NOISE_SEEDS = (1001, 1002)
 MARGIN_DRAWS = ("half",) + tuple(f"noise {seed}" for seed in MARGIN_NOISE_SEEDS)
+# The later catch moments rehearsed where no place holds (`later_moments`):
+# at the second moment the watched flight's 150-cell grid lands 30 and 66
+# cells of the mallets' flip +30, none at the first
+# (studies/landing_step/FINDINGS.md §16).
+LATER_MOMENTS = 1
 
 
 @dc.dataclass(frozen=True)
@@ -126,6 +138,11 @@ class Rehearsal:
     # candidates with the draws each landed in (dicts; see `rehearse`).
     lattices: tuple = ()
     margin: list = dc.field(default_factory=list)
+    # The catch moment rehearsed (the plan's `moment`: 1, the plan's own;
+    # a later one's plan is `plan`), and each later moment rehearsed
+    # (moment -> each mode's count of lattice cells in the target).
+    moment: int = 1
+    moments: dict = dc.field(default_factory=dict)
 
     def as_dict(self) -> dict:
         return {"cell": None if self.cell is None else list(self.cell),
@@ -137,16 +154,30 @@ class Rehearsal:
                 "palm_shift_mm": round(1e3 * self.shift_m, 3),
                 "places": {f"{mm:+g}": dict(counts)
                            for mm, counts in self.places.items()},
+                "catch_point": self.moment,
+                "catch_points": {str(k): dict(counts)
+                                 for k, counts in self.moments.items()},
                 "margin": list(self.margin)}
 
     @classmethod
-    def from_dict(cls, d: dict, plan: CatchPlan, ik: ArmIk) -> "Rehearsal":
-        """The rehearsal `as_dict` recorded for the catch under `plan`,
-        its palm's place moved again (shifted_along_axis) from `plan`."""
+    def from_dict(cls, d: dict, plan: CatchPlan, ik: ArmIk,
+                  later=()) -> "Rehearsal":
+        """The rehearsal `as_dict` recorded for the catch under `plan`
+        (`later`: the plans at the flight's later catch moments, as given
+        to `rehearse`), its palm's place moved again (shifted_along_axis)
+        from the plan of the moment it picked."""
+        moment = int(d.get("catch_point", 1))
+        base = plan
+        if moment > 1:
+            base = next((p for p in later if p.moment == moment), None)
+            if base is None:
+                raise ValueError(f"catch_point: got {moment}, expected one "
+                                 "of the flight's catch moments, 1 to "
+                                 f"{1 + len(later)}")
         shift_m = 1e-3 * float(d["palm_shift_mm"])
-        moved = None
+        moved = None if moment == 1 else base
         if shift_m:
-            moved = shifted_along_axis(plan, shift_m, ik)
+            moved = shifted_along_axis(base, shift_m, ik)
             if moved is None:
                 raise ValueError(f"palm_shift_mm: got {d['palm_shift_mm']}, "
                                  "expected a move the arm reaches from "
@@ -157,7 +188,9 @@ class Rehearsal:
                    shift_m=shift_m, plan=moved,
                    places={float(mm): dict(counts)
                            for mm, counts in d["places"].items()},
-                   margin=list(d["margin"]))
+                   margin=list(d["margin"]), moment=moment,
+                   moments={int(k): dict(counts) for k, counts
+                            in d.get("catch_points", {}).items()})
 
     def fragile(self) -> bool:
         """Whether the pick's margin was rehearsed and it did not land in
@@ -171,8 +204,10 @@ class Rehearsal:
         """The MARGIN_DRAWS the picked candidate landed in (None: no margin
         rehearsed)."""
         for c in self.margin:
-            if (c["mode"], c["palm_shift_mm"], tuple(c["cell"])) == (
-                    self.mode, round(1e3 * self.shift_m, 3), self.cell):
+            if (c["mode"], c["palm_shift_mm"], tuple(c["cell"]),
+                    c.get("catch_point", 1)) == (
+                    self.mode, round(1e3 * self.shift_m, 3), self.cell,
+                    self.moment):
                 return list(c["landed_in"])
         return None
 
@@ -182,6 +217,25 @@ class Rehearsal:
         target grasp, and whether the palm waits ("plain")."""
         return (int(robustness(self.in_target).max()),
                 int(self.in_target.sum()), self.mode == "plain")
+
+
+def later_moments(scenario: Scenario, obj: ObjectSpec, ik: ArmIk, flight,
+                  shift_m: float = 0.0) -> list[CatchPlan]:
+    """The plans at `flight`'s catch moments 2 to 1 + LATER_MOMENTS (the
+    ones it has; throw_catch.plan_at_moment) with its release kept
+    (`with_release`), each palm moved `shift_m` along the object's axis
+    where the arm reaches it: what `rehearse` takes as `later`."""
+    plans = []
+    for moment in range(2, 2 + LATER_MOMENTS):
+        try:
+            plan = with_release(plan_at_moment(scenario, obj, ik, flight,
+                                               moment), scenario, flight)
+        except InputError:
+            break
+        if shift_m:
+            plan = shifted_along_axis(plan, shift_m, ik) or plan
+        plans.append(plan)
+    return plans
 
 
 def mode_scenario(scenario: Scenario, mode: str) -> Scenario:
@@ -209,7 +263,7 @@ def rehearsal_scenario(scenario: Scenario) -> Scenario:
 
 def rehearse(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
              plan: CatchPlan, modes=None, shifts=(),
-             margin: bool = False) -> Rehearsal:
+             margin: bool = False, later=()) -> Rehearsal:
     """The catch under `plan` rehearsed at every LATTICE cell (see the
     module's docstring), its palm corrected at the rehearsed throw's release
     as the throw will correct it (throw_catch.release_correction); one
@@ -218,7 +272,10 @@ def rehearse(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
     the object's axis [m] (PALM_SHIFTS_M) rehearsed when no mode lands in
     the target grasp at the plan's place; a move the arm does not reach is
     skipped. `margin`: the pick judged again with its rivals in
-    MARGIN_DRAWS (see the module's docstring)."""
+    MARGIN_DRAWS (see the module's docstring). `later`: with `margin`, the
+    plans at the flight's later catch moments (throw_catch.plan_at_moment,
+    LATER_MOMENTS of them), rehearsed at their own place where no place
+    of `shifts` has a candidate that holds."""
     best = _rehearse_modes(scenario, obj, ik, plan, modes)
     places = {0.0: best.counts}
     rehearsed = [best]
@@ -239,10 +296,27 @@ def rehearse(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
             best = max(found, key=Rehearsal.score)
             break
     best = dc.replace(best, places=places)
+    if margin and best.cell is None and later:
+        # No cell at any place: the later catch moments, in the same modes.
+        moments = _rehearse_moments(scenario, obj, ik, later, modes)
+        rehearsed += moments
+        found = [m for m in moments if m.cell is not None]
+        best = dc.replace(max(found, key=Rehearsal.score) if found else best,
+                          places=places, moments={
+                              m.moment: m.counts for m in moments})
+        later = ()
     if not margin or best.cell is None:
         return best
     return _with_margin(scenario, obj, ik, plan, best, rehearsed,
-                        shifts=shifts, modes=modes)
+                        shifts=shifts, modes=modes, later=later)
+
+
+def _rehearse_moments(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
+                      later, modes) -> list[Rehearsal]:
+    """`_rehearse_modes` at each of the `later` catch moments' plans, at the
+    moment's own place."""
+    return [dc.replace(_rehearse_modes(scenario, obj, ik, p, modes),
+                       plan=p, moment=p.moment) for p in later]
 
 
 def _holds(landed: list[str]) -> bool:
@@ -252,8 +326,8 @@ def _holds(landed: list[str]) -> bool:
 
 
 def _key(c: Rehearsal) -> tuple:
-    """A candidate's catch mode, place [mm] and cell."""
-    return (c.mode, round(1e3 * c.shift_m, 3), c.cell)
+    """A candidate's catch mode, place [mm], cell and catch moment."""
+    return (c.mode, round(1e3 * c.shift_m, 3), c.cell, c.moment)
 
 
 def _candidates(best: Rehearsal, rehearsed, judged=()) -> list[Rehearsal]:
@@ -262,17 +336,19 @@ def _candidates(best: Rehearsal, rehearsed, judged=()) -> list[Rehearsal]:
     is given), then the cells in the target of every lattice in
     `rehearsed` (each place's `lattices`, or the place's pick alone),
     ranked by the cell's robustness, its lattice's count of cells in the
-    target, the waiting palm and the nearer place."""
+    target, the waiting palm, the nearer place and the earlier moment."""
     ranked = []
     for place in rehearsed:
         for lattice in place.lattices or (place,):
             lattice = dc.replace(lattice, shift_m=place.shift_m,
-                                 plan=place.plan, lattices=())
+                                 plan=place.plan, moment=place.moment,
+                                 lattices=())
             r = robustness(lattice.in_target)
             for i, j in np.argwhere(r > 0):
                 cell = (LATTICE_ROWS[i], LATTICE_COLUMNS[j])
                 key = (int(r[i, j]), int(lattice.in_target.sum()),
-                       lattice.mode == "plain", -abs(place.shift_m))
+                       lattice.mode == "plain", -abs(place.shift_m),
+                       -place.moment)
                 ranked.append((key, dc.replace(lattice, cell=cell)))
     ranked.sort(key=lambda entry: entry[0], reverse=True)  # stable
     out = [] if judged else [dc.replace(best, lattices=())]
@@ -304,14 +380,16 @@ def _draw_scenario(scenario: Scenario, mode: str, draw: str) -> Scenario:
 
 def _with_margin(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
                  plan: CatchPlan, best: Rehearsal, rehearsed, shifts=(),
-                 modes=None) -> Rehearsal:
+                 modes=None, later=()) -> Rehearsal:
     """`best` or a rival (`_candidates`) with more margin in MARGIN_DRAWS
     (see the module's docstring); where none holds (`_holds`), the places
     of `shifts` not rehearsed yet are rehearsed in `modes` and the next
-    candidates judged too. Its `margin` lists every candidate's draws
-    ("widened": judged in the second round), `places` every place's
-    counts."""
-    places = dict(best.places)
+    candidates judged too; where still none holds, the `later` catch
+    moments are, and their candidates judged. Its `margin` lists every
+    candidate's draws ("widened": judged after the first round;
+    "catch_point": its moment), `places` every place's counts, `moments`
+    every later moment's."""
+    places, moments = dict(best.places), dict(best.moments)
     candidates = _candidates(best, rehearsed)
     landed = _judge(scenario, obj, ik, plan, candidates)
     first_round = len(candidates)
@@ -331,15 +409,24 @@ def _with_margin(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
         more = _candidates(best, rehearsed, judged=candidates)
         landed += _judge(scenario, obj, ik, plan, more)
         candidates += more
+    if later and not any(_holds(draws) for draws in landed):
+        rehearsed = list(rehearsed) + _rehearse_moments(
+            scenario, obj, ik, later, modes)
+        moments |= {r.moment: r.counts for r in rehearsed if r.moment > 1}
+        more = _candidates(best, rehearsed, judged=candidates)
+        landed += _judge(scenario, obj, ik, plan, more)
+        candidates += more
     record = [{"mode": c.mode, "palm_shift_mm": round(1e3 * c.shift_m, 3),
                "cell": list(c.cell), "landed_in": landed[k],
                "widened": k >= first_round}
+              | ({"catch_point": c.moment} if c.moment > 1 else {})
               for k, c in enumerate(candidates)]
     pick = max(range(len(candidates)),
                key=lambda k: ("half" in landed[k], len(landed[k]), -k))
     picked = candidates[pick]
-    return dc.replace(picked, places=places, margin=record,
-                      counts=places[round(1e3 * picked.shift_m, 3)])
+    return dc.replace(picked, places=places, margin=record, moments=moments,
+                      counts=(moments[picked.moment] if picked.moment > 1
+                              else places[round(1e3 * picked.shift_m, 3)]))
 
 
 def _judge(scenario: Scenario, obj: ObjectSpec, ik: ArmIk, plan: CatchPlan,
@@ -350,8 +437,8 @@ def _judge(scenario: Scenario, obj: ObjectSpec, ik: ArmIk, plan: CatchPlan,
     for draw in MARGIN_DRAWS:
         groups = {}
         for k, c in enumerate(candidates):
-            groups.setdefault((c.mode, c.shift_m), []).append(k)
-        for (mode, _), members in groups.items():
+            groups.setdefault((c.mode, c.shift_m, c.moment), []).append(k)
+        for (mode, _, _), members in groups.items():
             moved = candidates[members[0]].plan or plan
             hits = _landings(_draw_scenario(scenario, mode, draw), obj, ik,
                              moved, [candidates[k].cell for k in members])
