@@ -189,14 +189,18 @@ class CatchPointPlanTest(unittest.TestCase):
     CATCH_POINT_SEPARATION_S away; one beyond its flight's is refused."""
 
     def test_second_catch_point_and_one_too_many(self):
-        from regrasp_drake.grid import CATCH_POINT_SEPARATION_S, plan_object
+        from regrasp_drake.grid import plan_object
         from regrasp_drake.planning.ik import ArmIk
         from regrasp_drake.station.scenario import load_scenario
+        from regrasp_drake.throw_catch import CATCH_POINT_SEPARATION_S
         from regrasp_drake.world.objects import resolve_object
         scenario, ik = load_scenario(name="Fast"), ArmIk()
         obj = resolve_object(name="table1-row3")
-        first = plan_object(scenario, obj, ik, catch_point=1).as_dict()
-        second = plan_object(scenario, obj, ik, catch_point=2).as_dict()
+        first = plan_object(scenario, obj, ik, catch_point=1)
+        second = plan_object(scenario, obj, ik, catch_point=2)
+        # the moment a catching throw corrects its palm at (release_correction)
+        self.assertEqual((first.moment, second.moment), (1, 2))
+        first, second = first.as_dict(), second.as_dict()
         self.assertGreaterEqual(
             abs(second["catch_point"]["t_s"] - first["catch_point"]["t_s"]),
             CATCH_POINT_SEPARATION_S - 1e-4)

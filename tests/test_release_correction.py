@@ -6,9 +6,11 @@ seen puts it."""
 import dataclasses as dc
 import unittest
 from types import SimpleNamespace
+from unittest import mock
 
 import numpy as np
 
+from regrasp_drake import throw_catch
 from regrasp_drake.episode.episode import release_time, run_episode
 from regrasp_drake.learning.flight_predictor import FlightPredictor
 from regrasp_drake.paths import MODELS_DIR
@@ -17,6 +19,7 @@ from regrasp_drake.planning.free_flight import flight_from_release
 from regrasp_drake.station.scenario import ThrowNoise
 from regrasp_drake.throw_catch import (
     ReleaseCorrection,
+    plan_at_moment,
     plan_catch,
     plan_watched,
     release_correction,
@@ -33,7 +36,7 @@ class ReleaseCorrectionTest(Row2Fixture, unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         super().setUpClass()
-        watched = watch(cls.scenario, cls.obj, cls.ik)
+        watched = cls.watched = watch(cls.scenario, cls.obj, cls.ik)
         cls.plan = plan_watched(cls.scenario, cls.obj, cls.ik, watched)
         k = int(np.argmin(np.abs(watched.logs.t - release_time(cls.scenario))))
         cls.logged_at_release = watched.logs.object_state[:, k]
@@ -98,6 +101,32 @@ class ReleaseCorrectionTest(Row2Fixture, unittest.TestCase):
                                delta=0.003)
         self.assertLess(np.linalg.norm(X_WG.translation()
                                        - at_release.translation()), 0.003)
+
+    def test_a_later_moment_corrected_at_that_moment(self):
+        # The plan at the flight's second catch moment: a release off the
+        # watched one moves its palm to the second moment's plan from the
+        # release seen, not by the first moment's difference.
+        later = with_release(plan_at_moment(self.scenario, self.obj, self.ik,
+                                            self.watched, 2),
+                             self.scenario, self.watched)
+        self.assertEqual(later.moment, 2)
+        state = self.logged_at_release.copy()
+        state[10] += 0.1  # 10 cm/s faster along the world's x
+        t = release_time(self.scenario)
+        record = ReleaseCorrection()
+        with mock.patch.object(throw_catch, "plan_at_moment",
+                               wraps=plan_at_moment) as planned:
+            X_WG, _, _ = release_correction(self.scenario, self.obj, self.ik,
+                                            later, _CELL, record)(state, t)
+        # the release seen and the plan's own, both at the second moment
+        self.assertEqual([c.args[4] for c in planned.call_args_list], [2, 2])
+        flight = flight_from_release(state, t, self.obj, self.scenario)
+        at_second = plan_at_moment(self.scenario, self.obj, self.ik, flight,
+                                   2).X_WG
+        self.assertEqual(record.how, "shifted")
+        self.assertGreater(record.shift_m, 0.005)
+        self.assertLess(np.linalg.norm(X_WG.translation()
+                                       - at_second.translation()), 0.003)
 
 
 class PredictedPlanCorrectionTest(Row2Fixture, unittest.TestCase):
