@@ -372,6 +372,25 @@ class LaterMomentTest(unittest.TestCase):
         self.assertEqual((picked.moment, picked.as_dict()["catch_points"]),
                          (1, {}))
 
+    def test_the_next_candidate_after_a_miss(self):
+        def record(cell, landed, **more):
+            return {"mode": "plain", "palm_shift_mm": 0.0, "cell": cell,
+                    "landed_in": landed, "widened": False} | more
+        picked = Rehearsal(
+            in_target=PalmPlaceTest.lattice([]), cell=(1, 1), margin=[
+                record([1, 1], ["noise 1001", "noise 1002"]),
+                record([3, 4], ["noise 1001"]),
+                record([5, 4], []),
+                record([1, 1], ["half", "noise 1001"], catch_point=2),
+                record([3, 1], ["noise 1001", "noise 1002"])])
+        tried, thrown = {picked.pick_key()}, []
+        while (c := picked.next_candidate(tried)) is not None:
+            tried.add(rehearsal_module.candidate_key(c))
+            thrown.append((tuple(c["cell"]), c.get("catch_point", 1)))
+        # half the steps first, then the most draws; the pick is not thrown
+        # again, a candidate that landed in no draw is not thrown
+        self.assertEqual(thrown, [((1, 1), 2), ((3, 1), 1), ((3, 4), 1)])
+
 
 # A smaller lattice and fewer margin candidates under test, around the
 # cells where table1-row2 lands in the flip (studies/landing_step rows):
