@@ -1,6 +1,7 @@
 """The first throw's rehearsal: what it simulates, and that it predicts
 the throw it rehearses when nothing differs."""
 
+import copy
 import dataclasses as dc
 import unittest
 from types import SimpleNamespace
@@ -413,9 +414,9 @@ class RehearsedFirstThrowTest(unittest.TestCase):
             cls.result = cls.learn(rehearse=True)
 
     @classmethod
-    def learn(cls, **kwargs):
+    def learn(cls, max_throws=1, **kwargs):
         return learn(cls.scenario, cls.obj, cls.model, ik=ArmIk(),
-                     max_throws=1, progress=None,
+                     max_throws=max_throws, progress=None,
                      flight_predictor=cls.predictor, **kwargs)
 
     def test_the_rehearsal_predicts_the_throw_it_rehearses(self):
@@ -450,6 +451,27 @@ class RehearsedFirstThrowTest(unittest.TestCase):
         a, b = replayed.attempts[0], self.result.attempts[0]
         self.assertEqual((a.chosen_by, a.cell, a.outcome, a.grasp_error),
                          (b.chosen_by, b.cell, b.outcome, b.grasp_error))
+
+    def test_a_miss_then_the_next_candidate(self):
+        # The recorded rehearsal with a pick that does not land: cell (1, 4)
+        # in the waiting palm's mode (h_catch 0.08 m: the full lattice's
+        # row that misses for this pair, studies/landing_step rows). The
+        # throw there misses, and the next throw is at the candidate that
+        # landed in the draws (the real pick), not the network's cell.
+        d = copy.deepcopy(self.result.rehearsal)
+        wrong = {"mode": "plain", "palm_shift_mm": 0.0, "cell": [1, 4],
+                 "landed_in": ["noise 1001"], "widened": False}
+        d |= {"cell": [1, 4], "mode": "plain", "palm_shift_mm": 0.0,
+              "margin": [wrong] + d["margin"]}
+        result = self.learn(rehearse=True, rehearsed=d, max_throws=2)
+        first, second = result.attempts
+        self.assertEqual((tuple(first.cell), first.chosen_by),
+                         ((1, 4), "rehearsal"))
+        self.assertNotEqual(first.outcome, "caught")
+        best = self.result.rehearsal
+        self.assertEqual((tuple(second.cell), second.chosen_by),
+                         (tuple(best["cell"]), "rehearsal"))
+        self.assertTrue(result.success, second.grasp_error)
 
     def test_a_recorded_rehearsal_needs_rehearse(self):
         with self.assertRaisesRegex(InputError, "rehearsed: .*rehearse=True"):
