@@ -1,7 +1,6 @@
 """The first throw's rehearsal: what it simulates, and that it predicts
 the throw it rehearses when nothing differs."""
 
-import copy
 import dataclasses as dc
 import unittest
 from types import SimpleNamespace
@@ -373,25 +372,6 @@ class LaterMomentTest(unittest.TestCase):
         self.assertEqual((picked.moment, picked.as_dict()["catch_points"]),
                          (1, {}))
 
-    def test_the_next_candidate_after_a_miss(self):
-        def record(cell, landed, **more):
-            return {"mode": "plain", "palm_shift_mm": 0.0, "cell": cell,
-                    "landed_in": landed, "widened": False} | more
-        picked = Rehearsal(
-            in_target=PalmPlaceTest.lattice([]), cell=(1, 1), margin=[
-                record([1, 1], ["noise 1001", "noise 1002"]),
-                record([3, 4], ["noise 1001"]),
-                record([5, 4], []),
-                record([1, 1], ["half", "noise 1001"], catch_point=2),
-                record([3, 1], ["noise 1001", "noise 1002"])])
-        tried, thrown = {picked.pick_key()}, []
-        while (c := picked.next_candidate(tried)) is not None:
-            tried.add(rehearsal_module.candidate_key(c))
-            thrown.append((tuple(c["cell"]), c.get("catch_point", 1)))
-        # half the steps first, then the most draws; the pick is not thrown
-        # again, a candidate that landed in no draw is not thrown
-        self.assertEqual(thrown, [((1, 1), 2), ((3, 1), 1), ((3, 4), 1)])
-
 
 # A smaller lattice and fewer margin candidates under test, around the
 # cells where table1-row2 lands in the flip (studies/landing_step rows):
@@ -414,9 +394,9 @@ class RehearsedFirstThrowTest(unittest.TestCase):
             cls.result = cls.learn(rehearse=True)
 
     @classmethod
-    def learn(cls, max_throws=1, **kwargs):
+    def learn(cls, **kwargs):
         return learn(cls.scenario, cls.obj, cls.model, ik=ArmIk(),
-                     max_throws=max_throws, progress=None,
+                     max_throws=1, progress=None,
                      flight_predictor=cls.predictor, **kwargs)
 
     def test_the_rehearsal_predicts_the_throw_it_rehearses(self):
@@ -451,27 +431,6 @@ class RehearsedFirstThrowTest(unittest.TestCase):
         a, b = replayed.attempts[0], self.result.attempts[0]
         self.assertEqual((a.chosen_by, a.cell, a.outcome, a.grasp_error),
                          (b.chosen_by, b.cell, b.outcome, b.grasp_error))
-
-    def test_a_miss_then_the_next_candidate(self):
-        # The recorded rehearsal with a pick that does not land: cell (1, 4)
-        # in the waiting palm's mode (h_catch 0.08 m: the full lattice's
-        # row that misses for this pair, studies/landing_step rows). The
-        # throw there misses, and the next throw is at the candidate that
-        # landed in the draws (the real pick), not the network's cell.
-        d = copy.deepcopy(self.result.rehearsal)
-        wrong = {"mode": "plain", "palm_shift_mm": 0.0, "cell": [1, 4],
-                 "landed_in": ["noise 1001"], "widened": False}
-        d |= {"cell": [1, 4], "mode": "plain", "palm_shift_mm": 0.0,
-              "margin": [wrong] + d["margin"]}
-        result = self.learn(rehearse=True, rehearsed=d, max_throws=2)
-        first, second = result.attempts
-        self.assertEqual((tuple(first.cell), first.chosen_by),
-                         ((1, 4), "rehearsal"))
-        self.assertNotEqual(first.outcome, "caught")
-        best = self.result.rehearsal
-        self.assertEqual((tuple(second.cell), second.chosen_by),
-                         (tuple(best["cell"]), "rehearsal"))
-        self.assertTrue(result.success, second.grasp_error)
 
     def test_a_recorded_rehearsal_needs_rehearse(self):
         with self.assertRaisesRegex(InputError, "rehearsed: .*rehearse=True"):

@@ -89,10 +89,8 @@ from regrasp_drake.learning.rehearsal import (
     MODES,
     PALM_SHIFTS_M,
     Rehearsal,
-    candidate_key,
     later_moments,
     mode_scenario,
-    placed,
     rehearse,
 )
 from regrasp_drake.learning.search import (
@@ -208,16 +206,12 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
     first-throw mode (no watching throw), or None. rehearse: with it, the
     first catch (planned from the watched or the predicted flight; not
     `at_release`) is rehearsed in simulation before the throw at a lattice of
-    cells in each catch mode (rehearsal.MODES), at the palm's places and
-    the flight's later catch moments where none holds, and starts from the
-    cell with the most margin in the target grasp, in that cell's mode
-    (learning/rehearsal.py; a chooser of its own, `chosen_by`
-    "rehearsal"); a catch at a rehearsed candidate that misses is followed
-    by one at the next candidate that landed in a draw
-    (`_Phase.next_rehearsed`), before any replanning. rehearsed: with
-    rehearse, a rehearsal of this same first catch recorded before (a
-    LearningResult's `rehearsal`, made under this scenario without its
-    release noise), replayed instead of
+    cells in each catch mode (rehearsal.MODES), at the palm's places where
+    none lands, and starts from the cell with the most margin in the
+    target grasp, in that cell's mode (learning/rehearsal.py; a chooser of its own,
+    `chosen_by` "rehearsal"). rehearsed: with rehearse, a rehearsal of this
+    same first catch recorded before (a LearningResult's `rehearsal`, made
+    under this scenario without its release noise), replayed instead of
     rehearsing again: the rehearsal simulates the throw without release
     noise, so runs that differ only in their noise share it
     (benchmarks/regrasp_targets.py --rehearsal-from). at_release: the
@@ -269,8 +263,6 @@ def learn(scenario: Scenario, obj: ObjectSpec, model: CatchMlp, *,
         if phase.same_miss(result):
             stopped = "same_miss"
             break
-        if phase.next_rehearsed():  # the rehearsal's next candidate
-            continue
         if phase.predicted:  # the predicted flight's plan failed
             stopped = phase.replan(result, max_throws)
             if stopped is not None:
@@ -332,10 +324,6 @@ class _Phase:
         # made; who chose the search's first cell.
         self.rehearse, self.rehearsed = rehearse, rehearsed
         self.rehearsal = None
-        # What the rehearsal was given (the plan, the later moments' plans,
-        # the palm's move before it), and the candidates thrown so far.
-        self.rehearsal_base = None
-        self.tried = set()
         # The scenario of the catching throws: the phase's, in the catch
         # mode the rehearsal picked (learning/rehearsal.py).
         self.catch_scenario = scenario
@@ -440,7 +428,6 @@ class _Phase:
         if self.rehearse and self.rehearsal is None:
             later = later_moments(self.scenario, self.obj, self.ik,
                                   self.flight, self.palm_shift_m)
-            self.rehearsal_base = (plan, later, self.palm_shift_m)
             self.rehearsal = (
                 Rehearsal.from_dict(self.rehearsed, plan, self.ik, later)
                 if self.rehearsed is not None
@@ -480,12 +467,6 @@ class _Phase:
             if self.rehearsal.plan is not None:  # the palm moved
                 plan = self.plan = self.rehearsal.plan
                 self.palm_shift_m += self.rehearsal.shift_m
-            self.tried = {self.rehearsal.pick_key()}
-        self.search_from(first, plan)
-
-    def search_from(self, first, plan: CatchPlan) -> None:
-        """A new search from the cell `first` under `plan`, moved to an
-        h_down the arm reaches (`feasible_start`)."""
         start, reach = feasible_start(
             first, self.ik, plan,
             along_normal=follows(self.catch_scenario)[0])
@@ -593,31 +574,6 @@ class _Phase:
                     f"{result.sim_time_s:.2f} s simulated, "
                     f"{result.wall_s:.1f} s wall")
         return result
-
-    def next_rehearsed(self) -> bool:
-        """After a catch at a rehearsed candidate missed: the next throw at
-        the rehearsal's best candidate not thrown yet that landed in one of
-        its draws or more (Rehearsal.next_candidate), in its mode, place
-        and catch moment, with a new search from its cell. False (nothing
-        changed) when there is none."""
-        if self.rehearsal is None or self.start_chooser != "rehearsal":
-            return False
-        c = self.rehearsal.next_candidate(self.tried)
-        if c is None:
-            return False
-        base, later, shift_m = self.rehearsal_base
-        plan = placed(c, base, self.ik, later) or base
-        self.tried.add(candidate_key(c))
-        self.plan = plan
-        self.palm_shift_m = shift_m + 1e-3 * c["palm_shift_mm"]
-        self.catch_scenario = mode_scenario(self.scenario, c["mode"])
-        moment = c.get("catch_point", 1)
-        at = f", catch point {moment}" if moment > 1 else ""
-        self.report(f"the rehearsal's next candidate: {c['mode']} at "
-                    f"{c['palm_shift_mm']:+g} mm{at}, cell {tuple(c['cell'])}"
-                    f" (landed in {', '.join(c['landed_in'])})")
-        self.search_from(tuple(c["cell"]), plan)
-        return True
 
     def same_miss(self, result: EpisodeResult) -> bool:
         """Under a grasp target, after a throw that missed it: whether the

@@ -167,8 +167,21 @@ class Rehearsal:
         to `rehearse`), its palm's place moved again (shifted_along_axis)
         from the plan of the moment it picked."""
         moment = int(d.get("catch_point", 1))
+        base = plan
+        if moment > 1:
+            base = next((p for p in later if p.moment == moment), None)
+            if base is None:
+                raise ValueError(f"catch_point: got {moment}, expected one "
+                                 "of the flight's catch moments, 1 to "
+                                 f"{1 + len(later)}")
         shift_m = 1e-3 * float(d["palm_shift_mm"])
-        moved = placed(d, plan, ik, later)
+        moved = None if moment == 1 else base
+        if shift_m:
+            moved = shifted_along_axis(base, shift_m, ik)
+            if moved is None:
+                raise ValueError(f"palm_shift_mm: got {d['palm_shift_mm']}, "
+                                 "expected a move the arm reaches from "
+                                 "this plan")
         return cls(in_target=np.array(d["lattice"], dtype=bool),
                    cell=None if d["cell"] is None else tuple(d["cell"]),
                    mode=d["mode"], counts=dict(d["by_mode"]),
@@ -198,62 +211,12 @@ class Rehearsal:
                 return list(c["landed_in"])
         return None
 
-    def pick_key(self) -> tuple:
-        """The pick's catch mode, place [mm], cell and catch moment, as
-        `candidate_key` gives a margin record's."""
-        return (self.mode, round(1e3 * self.shift_m, 3),
-                None if self.cell is None else tuple(self.cell), self.moment)
-
-    def next_candidate(self, tried) -> dict | None:
-        """After a throw at a candidate missed: the margin record not in
-        `tried` (candidate_keys) ranked as the pick is (half the steps
-        first, then the draws landed in, then the earlier judged), among
-        those that landed in the target grasp in at least one draw; None
-        when none is left."""
-        left = [(k, c) for k, c in enumerate(self.margin)
-                if candidate_key(c) not in tried and c["landed_in"]]
-        if not left:
-            return None
-        return max(left, key=lambda kc: ("half" in kc[1]["landed_in"],
-                                         len(kc[1]["landed_in"]), -kc[0]))[1]
-
     def score(self) -> tuple:
         """What a rehearsal's pick is ranked by, highest first: its lattice's
         largest robustness (labels.robustness), its count of cells in the
         target grasp, and whether the palm waits ("plain")."""
         return (int(robustness(self.in_target).max()),
                 int(self.in_target.sum()), self.mode == "plain")
-
-
-def candidate_key(c: dict) -> tuple:
-    """A margin record's catch mode, place [mm], cell and catch moment."""
-    return (c["mode"], c["palm_shift_mm"], tuple(c["cell"]),
-            int(c.get("catch_point", 1)))
-
-
-def placed(candidate: dict, plan: CatchPlan, ik: ArmIk,
-           later=()) -> CatchPlan | None:
-    """The plan of a rehearsal's candidate (a `margin` record, or a
-    Rehearsal's `as_dict`): the plan of its catch moment ("catch_point";
-    1: `plan`, else the one of `later`), its palm moved "palm_shift_mm"
-    along the axis; None when that is `plan` unmoved. ValueError when the
-    moment is not among the plans or the move is out of the arm's reach."""
-    moment = int(candidate.get("catch_point", 1))
-    base = plan
-    if moment > 1:
-        base = next((p for p in later if p.moment == moment), None)
-        if base is None:
-            raise ValueError(f"catch_point: got {moment}, expected one of "
-                             f"the flight's catch moments, 1 to "
-                             f"{1 + len(later)}")
-    shift_m = 1e-3 * float(candidate["palm_shift_mm"])
-    if not shift_m:
-        return None if moment == 1 else base
-    moved = shifted_along_axis(base, shift_m, ik)
-    if moved is None:
-        raise ValueError(f"palm_shift_mm: got {candidate['palm_shift_mm']}, "
-                         "expected a move the arm reaches from this plan")
-    return moved
 
 
 def later_moments(scenario: Scenario, obj: ObjectSpec, ik: ArmIk, flight,
