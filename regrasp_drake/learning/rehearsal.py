@@ -113,8 +113,9 @@ MARGIN_NOISE_SEEDS = (1001, 1002)
 MARGIN_DRAWS = ("half",) + tuple(f"noise {seed}" for seed in MARGIN_NOISE_SEEDS)
 # The later catch moments rehearsed where no place holds (`later_moments`):
 # at the second moment the watched flight's 150-cell grid lands 30 and 66
-# cells of the mallets' flip +30, none at the first
-# (studies/landing_step/FINDINGS.md §16).
+# cells of the mallets' flip +30, none at the first; rehearsed there, both
+# land in the target at a finer step (studies/landing_step/FINDINGS.md
+# §§16-17).
 LATER_MOMENTS = 1
 
 
