@@ -14,7 +14,10 @@ the target grasp), capped at --max-throws throws. Rows go to <out>.jsonl as they
 finish (a rerun resumes, refusing rows of another scenario); the summary
 per target to <out>.json and is printed. Default: Table 1's five objects
 and the six held-out ones, the six targets keep/flip at -30, 0, +30 mm (an
-offset out of an object's reach is recorded as refused), both modes.
+offset out of an object's reach is recorded as refused), both modes. With
+--rehearse, a pair refused after its rehearsal (no cell lands anywhere and
+no closing holds it at rest: learning_phase.Unholdable) is recorded as
+stopped "unholdable" and counted as a miss.
 """
 
 # regrasp_drake before NumPy: it pins NumPy's and OpenBLAS's kernels
@@ -34,7 +37,11 @@ from regrasp_drake.grid import append_rows
 from regrasp_drake.map_rows import read_rows
 from regrasp_drake.errors import InputError
 from regrasp_drake.learning.flight_predictor import FlightPredictor
-from regrasp_drake.learning.learning_phase import NoCatchPoint, learn
+from regrasp_drake.learning.learning_phase import (
+    NoCatchPoint,
+    Unholdable,
+    learn,
+)
 from regrasp_drake.learning.offset_prior import OffsetPrior
 from regrasp_drake.learning.planner import PAPER_NETWORK
 from regrasp_drake.learning.rehearsal import rehearsal_scenario
@@ -71,6 +78,9 @@ def run_one(scenario, obj, model, ik, mode, max_throws, predictor,
                        flight_predictor=predictor if mode == "first-throw"
                        else None, planner=planner, rehearse=rehearse,
                        rehearsed=rehearsed)
+    except Unholdable as e:  # refused after the rehearsal: a miss, counted
+        return {"stopped": "unholdable", "error": str(e), "success": False,
+                "caught": False, "throws": e.throws}
     except (NoCatchPoint, InputError) as e:
         return {"stopped": "no_catch_point", "error": str(e),
                 "success": False, "caught": False,
@@ -139,11 +149,12 @@ def landing(rows: list[dict]) -> dict:
     each miss by its reason."""
     done = [r for r in rows if r["stopped"] != "refused"]
     ok = [r for r in done if r["success"]]
-    misses = dict.fromkeys(("no_catch_point", *grasp.MISS_REASONS), 0)
+    misses = dict.fromkeys(("no_catch_point", "unholdable",
+                            *grasp.MISS_REASONS), 0)
     right = []
     for r in done:
-        if r["stopped"] == "no_catch_point":
-            misses["no_catch_point"] += not r["success"]
+        if r["stopped"] in ("no_catch_point", "unholdable"):
+            misses[r["stopped"]] += not r["success"]
             continue
         reason = miss_reason(r.get("caught", False), r.get("grasp_error"))
         if reason is not None and not r["success"]:

@@ -1,7 +1,9 @@
 """The first throw's rehearsal: what it simulates, and that it predicts
 the throw it rehearses when nothing differs."""
 
+import copy
 import dataclasses as dc
+import io
 import unittest
 from types import SimpleNamespace
 from unittest import mock
@@ -9,10 +11,12 @@ from unittest import mock
 import numpy as np
 import torch
 
+from regrasp_drake.episode.static_hold import StaticHold
 from regrasp_drake.errors import InputError
+from regrasp_drake.learning import learning_phase
 from regrasp_drake.learning import rehearsal as rehearsal_module
 from regrasp_drake.learning.flight_predictor import FlightPredictor
-from regrasp_drake.learning.learning_phase import learn
+from regrasp_drake.learning.learning_phase import Unholdable, learn
 from regrasp_drake.learning.rehearsal import (
     LATTICE,
     LATTICE_COLUMNS,
@@ -394,9 +398,9 @@ class RehearsedFirstThrowTest(unittest.TestCase):
             cls.result = cls.learn(rehearse=True)
 
     @classmethod
-    def learn(cls, **kwargs):
+    def learn(cls, progress=None, **kwargs):
         return learn(cls.scenario, cls.obj, cls.model, ik=ArmIk(),
-                     max_throws=1, progress=None,
+                     max_throws=1, progress=progress,
                      flight_predictor=cls.predictor, **kwargs)
 
     def test_the_rehearsal_predicts_the_throw_it_rehearses(self):
@@ -431,6 +435,50 @@ class RehearsedFirstThrowTest(unittest.TestCase):
         a, b = replayed.attempts[0], self.result.attempts[0]
         self.assertEqual((a.chosen_by, a.cell, a.outcome, a.grasp_error),
                          (b.chosen_by, b.cell, b.outcome, b.grasp_error))
+
+    def test_refused_where_neither_the_rehearsal_nor_a_closing_holds(self):
+        # A recorded rehearsal that landed no cell anywhere: the static test
+        # decides, before any throw (the catching throws stubbed to fail).
+        d = copy.deepcopy(self.result.rehearsal)
+        d |= {"cell": None, "margin": [], "palm_shift_mm": 0.0,
+              "places": {"+0": {}, "+4": {}, "-4": {}}, "catch_points": {
+                  "2": {}}}
+
+        class Thrown(Exception):
+            pass
+
+        def test(success):
+            return StaticHold(object=self.obj.name, target=Target("flip"),
+                              rest={"offset_mm": 0.4, "tilt_deg": 3.0},
+                              closed=None, held=success, success=success,
+                              reason=None if success else "dropped",
+                              grasp_error=None, closing="open, centred",
+                              tried=10)
+        with mock.patch.object(learning_phase, "catch_planned",
+                               side_effect=Thrown), \
+                mock.patch.object(learning_phase, "static_hold",
+                                  return_value=test(False)):
+            with self.assertRaises(Unholdable) as e:
+                self.learn(rehearse=True, rehearsed=d)
+        self.assertEqual(e.exception.throws, 0)
+        self.assertRegex(str(e.exception), (
+            r"^object table1-row2, target flip.*: no closing of the hand "
+            r"holds it at rest \(10 tried; .*\); and the rehearsal lands "
+            r"none of its 9 lattice cells in the target grasp in 3 catch "
+            r"modes at 3 palm place\(s\) and 2 catch moment\(s\): refused "
+            r"before the throw"))
+        # Held at rest: a warning, and the throw goes on.
+        progress = io.StringIO()
+        with mock.patch.object(learning_phase, "catch_planned",
+                               side_effect=Thrown), \
+                mock.patch.object(learning_phase, "static_hold",
+                                  return_value=test(True)):
+            with self.assertRaises(Thrown):
+                self.learn(rehearse=True, rehearsed=d, progress=progress)
+        self.assertIn("warning: the rehearsal lands none of its 9 lattice "
+                      "cells", progress.getvalue())
+        self.assertIn("the static test holds it at rest (open, centred)",
+                      progress.getvalue())
 
     def test_a_recorded_rehearsal_needs_rehearse(self):
         with self.assertRaisesRegex(InputError, "rehearsed: .*rehearse=True"):

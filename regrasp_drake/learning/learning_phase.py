@@ -75,6 +75,7 @@ from pydrake.math import RigidTransform
 from regrasp_drake import __version__
 from regrasp_drake.episode.episode import release_time, run_episode
 from regrasp_drake.episode.result import EpisodeResult, start_grasp
+from regrasp_drake.episode.static_hold import static_hold
 from regrasp_drake.errors import InputError, field_error
 from regrasp_drake.grid import ending
 from regrasp_drake.learning import library as lib
@@ -82,6 +83,7 @@ from regrasp_drake.learning.learning_result import (
     Attempt,
     LearningResult,
     NoCatchPoint,
+    Unholdable,
 )
 from regrasp_drake.learning.planner import Planner, load_planner
 from regrasp_drake.learning.rehearsal import (
@@ -460,6 +462,8 @@ class _Phase:
                             f"{len(MARGIN_DRAWS)} draws "
                             f"({', '.join(landed) or 'none'}; it needs half "
                             "the steps and 2 draws)")
+            if self.rehearsal.cell is None:
+                self.refuse_or_warn()
             if self.rehearsal.cell is not None:
                 first, self.start_chooser = self.rehearsal.cell, "rehearsal"
                 self.catch_scenario = mode_scenario(self.scenario,
@@ -482,6 +486,28 @@ class _Phase:
         prior = (None if self.prior is None
                  else object_prior(*self.prior, self.features))
         self.search = Search(start, prior, reach=reach)
+
+    def refuse_or_warn(self) -> None:
+        """Where the rehearsal lands no cell in the target grasp in any
+        catch mode, palm place or catch moment: the static test
+        (episode/static_hold.py, every closing in turn). When no closing
+        holds the object at rest either, the target is refused before the
+        catching throw (Unholdable: one line naming the object, the target,
+        what the static test saw and what the rehearsal tried); else the
+        throw goes on from the planner's cell, with a warning."""
+        r = self.rehearsal
+        tried = (f"the rehearsal lands none of its {r.in_target.size} "
+                 f"lattice cells in the target grasp in {len(MODES)} catch "
+                 f"modes at {len(r.places)} palm place(s) and "
+                 f"{1 + len(r.moments)} catch moment(s)")
+        test = static_hold(self.scenario, self.obj)
+        if not test.success:
+            raise Unholdable(f"{test.line()}; and {tried}: refused before "
+                             "the throw, expected a target the hand can hold",
+                             throws=self.throws)
+        self.report(f"warning: {tried}; the static test holds it at rest "
+                    f"({test.closing}): the throw goes on from "
+                    f"{self.planner.name}'s cell")
 
     def catch(self) -> EpisodeResult | None:
         """A throw caught at the search's next cell with the plan's pose,

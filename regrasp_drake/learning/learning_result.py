@@ -25,6 +25,17 @@ class NoCatchPoint(InputError):
         self.wall_s = wall_s
 
 
+class Unholdable(InputError):
+    """A grasp target refused before the catching throw: no closing of the
+    hand holds the object at rest in it (the static test) and the
+    rehearsal lands no cell in it in any catch mode, palm place or catch
+    moment. Carries the throws made (a watch, if any)."""
+
+    def __init__(self, message: str, *, throws: int):
+        super().__init__(message)
+        self.throws = throws
+
+
 @dc.dataclass
 class Attempt:
     throw: int          # the throw's number in the run (the watch is 1)
