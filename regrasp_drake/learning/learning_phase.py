@@ -436,17 +436,15 @@ class _Phase:
                 else rehearse(self.scenario, self.obj, self.ik, plan,
                               modes=MODES, shifts=PALM_SHIFTS_M, margin=True,
                               later=later))
-            for mm, by_mode in self.rehearsal.places.items():
+            rehearsed = [(f"palm {mm:+g} mm along the axis", by_mode)
+                         for mm, by_mode in self.rehearsal.places.items()]
+            rehearsed += [(f"catch point {k}", by_mode)
+                          for k, by_mode in self.rehearsal.moments.items()]
+            for where, by_mode in rehearsed:
                 counts = ", ".join(f"{mode} {n}"
                                    for mode, n in by_mode.items())
-                self.report(f"rehearsed (palm {mm:+g} mm along the axis): "
-                            f"lattice cells in the target grasp of "
-                            f"{self.rehearsal.in_target.size}: {counts}")
-            for k, by_mode in self.rehearsal.moments.items():
-                counts = ", ".join(f"{mode} {n}"
-                                   for mode, n in by_mode.items())
-                self.report(f"rehearsed (catch point {k}): lattice cells "
-                            f"in the target grasp of "
+                self.report(f"rehearsed ({where}): lattice cells in the "
+                            f"target grasp of "
                             f"{self.rehearsal.in_target.size}: {counts}")
             for c in self.rehearsal.margin:
                 moment = c.get("catch_point", 1)
