@@ -31,22 +31,24 @@ ROWS = [_row("a", True, True, 5.0, 2.0, predicted=1.0),
         _row("c", False, True, 8.0, -14.0, predicted=-10.0),  # off
         _row("d", False, True, 170.0, 0.0),                  # wrong way
         _row("e", False, False),                             # dropped
-        _row("f", False, False, stopped="refused")]
+        _row("f", False, False, stopped="refused"),
+        # refused after its rehearsal: a miss, kept in the denominator
+        _row("g", False, False, stopped="unholdable")]
 
 
 class LandingFiguresTest(unittest.TestCase):
     def test_share_medians_and_misses(self):
         figures = regrasp_targets.landing(ROWS)
         self.assertEqual((figures["pairs"], figures["refused"],
-                          figures["in_target"]), (6, 1, 1))
-        self.assertEqual(figures["share_in_target"], 0.2)
+                          figures["in_target"]), (7, 1, 1))
+        self.assertEqual(figures["share_in_target"], round(1 / 6, 3))
         # Held the right way round: a, b, c.
         self.assertEqual(figures["held_right_way_round"], 3)
         self.assertEqual(figures["median_abs_offset_error_mm"], 4.0)
         self.assertEqual(figures["median_tilt_deg"], 8.0)
         self.assertEqual(figures["misses"], {
-            "no_catch_point": 0, "dropped": 1, "wrong_way_round": 1,
-            "tilted": 1, "off_offset": 1})
+            "no_catch_point": 0, "unholdable": 1, "dropped": 1,
+            "wrong_way_round": 1, "tilted": 1, "off_offset": 1})
         # The landing model's error: |1-2|, |0-4|, |-10+14|.
         self.assertEqual(figures["median_abs_predicted_offset_error_mm"], 4.0)
 
