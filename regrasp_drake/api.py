@@ -217,8 +217,11 @@ def learn(obj: ObjectSpec, *, scenario: Scenario | None = None,
     4-8 mm along the axis where no mode lands) and starts from the cell
     that lands in its margin's draws (half the step first, then release
     noise) among the most robust, the palm's other places searched too
-    where no candidate lands at half the step and in 2 draws
-    (learning/rehearsal.py; one to ten minutes on two cores)."""
+    where no candidate lands at half the step and in 2 draws, then the
+    flight's second catch moment (learning/rehearsal.py; one to fifteen
+    minutes on two cores). A target that no rehearsed cell lands and no
+    closing of the hand holds at rest (the static test) is refused before
+    the catching throw: InputError (learning_phase.Unholdable)."""
     if planner not in PLANNER_CHOICES:
         raise field_error("planner", planner, " or ".join(PLANNER_CHOICES))
     watch = _watch(watch, first_throw, "learn")

@@ -197,7 +197,10 @@ def _add_first_throw_args(p: argparse.ArgumentParser) -> None:
                         "lands in the draws of its margin (half the step "
                         "first, then release noise) among the most robust, "
                         "the palm's other places searched too where no "
-                        "candidate lands at half the step and in 2 draws "
+                        "candidate lands at half the step and in 2 draws, "
+                        "then the flight's second catch moment; a target "
+                        "that no cell lands and no closing holds at rest "
+                        "is refused before the throw (exit 2) "
                         "(learning/rehearsal.py; not with --at-release)")
     p.add_argument("--at-release", action="store_true",
                    help="no watching throw: each throw plans its catch when "
