@@ -27,6 +27,7 @@ from regrasp_drake.parameter_space import (  # noqa: F401 (nearest_cell: re-expo
     cells,
     nearest_cell,
 )
+from regrasp_drake.planning.follow import plan_follow
 from regrasp_drake.planning.ik import ArmIk
 from regrasp_drake.progress import bar as progress_bar
 from regrasp_drake.station.scenario import load_scenario, scenario_digest
@@ -68,7 +69,10 @@ def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
 
     The cells share one simulated throw up to their triggers (see
     episode/branching.py); `workers` simulations run at once. `only`: a
-    subset of the cells (a coarse map), default all."""
+    subset of the cells (a coarse map), default all. The palm follows the
+    object as the scenario's catch mode has it (catch.follow_pitch,
+    catch.follow_along; planning/follow.plan_follow): a map in a catch
+    mode."""
     out = Path(out)
     done = read_rows(out)
     wanted = cells() if only is None else [tuple(c) for c in only]
@@ -84,7 +88,9 @@ def run_map(scenario, obj, ik, plan, out: Path, *, workers: int = 1,
             shown.update()
         run_cells(scenario, obj, ik=ik, X_WG=plan.X_WG,
                   parameters=[cell_parameters(c) for c in todo],
-                  workers=workers, on_result=write)
+                  workers=workers, on_result=write,
+                  follow=plan_follow(scenario, obj, plan.catch_point,
+                                     plan.X_WG))
     return done
 
 

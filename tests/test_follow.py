@@ -128,5 +128,30 @@ class FollowedCatchTest(unittest.TestCase):
         np.testing.assert_allclose(palm, planned, atol=0.2)
         self.assertLess(relative, 0.3)
 
+    def test_a_success_map_in_a_catch_mode_follows(self):
+        # grid.run_map gives its cells the plan's follow in the scenario's
+        # catch mode, and none to the waiting palm's (the data set's maps).
+        import tempfile
+        from pathlib import Path
+        from unittest import mock
+
+        from regrasp_drake import grid
+        waiting = with_target(load_scenario(), Target("keep"))
+        given = {}
+
+        def run_cells(scenario, obj, **kw):
+            given[scenario.catch.follow_pitch] = kw["follow"]
+            return []
+
+        with (tempfile.TemporaryDirectory() as tmp,
+              mock.patch.object(grid, "run_cells", run_cells)):
+            for k, scenario in enumerate((self.scenario, waiting)):
+                grid.run_map(scenario, self.obj, self.ik, self.plan,
+                             Path(tmp) / f"{k}.jsonl", progress=False,
+                             only=[(0, 0)])
+        np.testing.assert_array_equal(given[True], self.follow)
+        np.testing.assert_array_equal(given[False], NO_FOLLOW)
+
+
 if __name__ == "__main__":
     unittest.main()
