@@ -481,8 +481,15 @@ def _rehearse(rehearsed: Scenario, obj: ObjectSpec, ik: ArmIk,
 def _landings(rehearsed: Scenario, obj: ObjectSpec, ik: ArmIk,
               plan: CatchPlan, cells) -> list[bool]:
     """Whether the catch under `plan` lands in the target grasp at each of
-    `cells`, all forked from one throw simulated under `rehearsed`, the
-    palm corrected at its release as the throw corrects it."""
+    `cells` (`catches`)."""
+    return [bool(r.success) for r in catches(rehearsed, obj, ik, plan, cells)]
+
+
+def catches(rehearsed: Scenario, obj: ObjectSpec, ik: ArmIk,
+            plan: CatchPlan, cells) -> list:
+    """The catch under `plan` at each of `cells` (EpisodeResults without
+    logs), all forked from one throw simulated under `rehearsed`, the palm
+    corrected at its release as the throw corrects it."""
     throws = ThrowCache(size=1)
     episode = Episode(rehearsed, obj, ik=ik, X_WG=plan.X_WG,
                       catch_parameters=(0.0, 0.0), throws=throws)
@@ -495,7 +502,6 @@ def _landings(rehearsed: Scenario, obj: ObjectSpec, ik: ArmIk,
         follow = plan_follow(rehearsed, obj, plan.catch_point, X_WG)
     else:
         X_WG, _, follow = corrected
-    rows = run_cells(rehearsed, obj, ik=ik, X_WG=X_WG,
+    return run_cells(rehearsed, obj, ik=ik, X_WG=X_WG,
                      parameters=[cell_parameters(c) for c in cells],
                      workers=1, throws=throws, follow=follow)
-    return [bool(r.success) for r in rows]
