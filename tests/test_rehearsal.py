@@ -222,6 +222,25 @@ class MarginTest(unittest.TestCase):
                 [self.place])
         self.assertEqual((picked.mode, picked.cell), ("plain", (1, 1)))
 
+    def test_a_tie_goes_to_the_least_tilted(self):
+        # Every candidate lands in every draw: the one whose rehearsed
+        # landings rest least tilted (their mean), recorded with each.
+        tilt = {(1, 1): 12.0, (1, 4): 3.0, (3, 1): 3.0, (3, 4): 9.0}
+
+        def lands(mode, draw, cell, plan):
+            return rehearsal_module.Landing(
+                True, tilt[cell] + (1.0 if draw == "half" else 0.0))
+        with self.landings(lands):
+            picked = rehearsal_module._with_margin(
+                Scenario(), None, None, None,
+                dc.replace(self.place, places={0.0: self.place.counts}),
+                [self.place])
+        # (1, 4) and (3, 1) tie at 3.3°: the earlier
+        self.assertEqual((picked.mode, picked.cell), ("plain", (1, 4)))
+        self.assertEqual([m["tilt_deg"] for m in picked.margin],
+                         [12.3, 3.3, 3.3, 9.3])
+        self.assertEqual(picked.picked_draws(), list(MARGIN_DRAWS))
+
     def test_half_the_steps_first(self):
         # The pick lands in both noise draws, a rival at half the steps and
         # in one noise draw: the rival (the half step predicts a quarter

@@ -42,9 +42,12 @@ MARGIN_DRAWS: at half the shipped catch and landing steps, and under
 release noise at the shipped level (ThrowNoise.at_level(1)) with the
 rehearsal's own seeds. The throw takes the candidate that lands in the
 target grasp at half the steps and, among those, in the most draws (a tie:
-the earlier candidate): judged at a step twice finer than the half draw,
-47 of the 48 picks that landed at half the steps landed, 3 of the 8 that
-did not (studies/landing_step/FINDINGS.md §14). With `shifts` too, where no
+the one whose rehearsed landings rest least tilted, their mean to 0.1°,
+then the earlier candidate: over 60 pairs it changed 24 picks, kept every
+hit and took the median tilt at a finer step from 9.7° to 9.05°,
+studies/landing_step/FINDINGS.md §18). Judged at a step twice finer than
+the half draw, 47 of the 48 picks that landed at half the steps landed, 3
+of the 8 that did not (studies/landing_step/FINDINGS.md §14). With `shifts` too, where no
 candidate holds (lands at half the steps and in 2 draws or more), the
 search widens: every place of `shifts` not rehearsed yet is rehearsed,
 and the MARGIN_CANDIDATES best cells not judged yet, over every lattice,
@@ -66,6 +69,8 @@ that needs plant_config.time_step 0.125 ms (FINDINGS §14).
 
 import copy
 import dataclasses as dc
+import math
+import statistics
 
 import numpy as np
 
@@ -117,6 +122,17 @@ MARGIN_DRAWS = ("half",) + tuple(f"noise {seed}" for seed in MARGIN_NOISE_SEEDS)
 # land in the target at a finer step (studies/landing_step/FINDINGS.md
 # §§16-17).
 LATER_MOMENTS = 1
+
+
+@dc.dataclass(frozen=True)
+class Landing:
+    """A rehearsed catch: whether it lands in the target grasp (its truth
+    value) and the tilt it rests at, [°] (None: not held)."""
+    in_target: bool
+    tilt_deg: float | None = None
+
+    def __bool__(self) -> bool:
+        return self.in_target
 
 
 @dc.dataclass(frozen=True)
@@ -417,24 +433,37 @@ def _with_margin(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
         more = _candidates(best, rehearsed, judged=candidates)
         landed += _judge(scenario, obj, ik, plan, more)
         candidates += more
+    tilts = [_mean_tilt(draws) for draws in landed]
     record = [{"mode": c.mode, "palm_shift_mm": round(1e3 * c.shift_m, 3),
-               "cell": list(c.cell), "landed_in": landed[k],
+               "cell": list(c.cell), "landed_in": list(landed[k]),
                "widened": k >= first_round}
+              | ({"tilt_deg": tilts[k]} if math.isfinite(tilts[k]) else {})
               | ({"catch_point": c.moment} if c.moment > 1 else {})
               for k, c in enumerate(candidates)]
     pick = max(range(len(candidates)),
-               key=lambda k: ("half" in landed[k], len(landed[k]), -k))
+               key=lambda k: ("half" in landed[k], len(landed[k]), -tilts[k],
+                              -k))
     picked = candidates[pick]
     return dc.replace(picked, places=places, margin=record, moments=moments,
                       counts=(moments[picked.moment] if picked.moment > 1
                               else places[round(1e3 * picked.shift_m, 3)]))
 
 
+def _mean_tilt(draws: dict) -> float:
+    """A candidate's mean rehearsed tilt over the draws it landed in
+    (`_judge`'s draw -> tilt), [°] to 0.1; inf: none landed, or no tilt
+    known."""
+    tilts = [t for t in draws.values() if t is not None]
+    return round(statistics.mean(tilts), 1) if tilts else math.inf
+
+
 def _judge(scenario: Scenario, obj: ObjectSpec, ik: ArmIk, plan: CatchPlan,
-           candidates) -> list[list[str]]:
-    """The MARGIN_DRAWS each of `candidates` lands in the target grasp in
-    (the candidates at one place and mode share each draw's throw)."""
-    landed = [[] for _ in candidates]
+           candidates) -> list[dict]:
+    """The MARGIN_DRAWS each of `candidates` lands in the target grasp in,
+    each with the tilt it rests at there (draw -> tilt [°], None: not
+    known), in MARGIN_DRAWS's order (the candidates at one place and mode
+    share each draw's throw)."""
+    landed = [{} for _ in candidates]
     for draw in MARGIN_DRAWS:
         groups = {}
         for k, c in enumerate(candidates):
@@ -445,7 +474,7 @@ def _judge(scenario: Scenario, obj: ObjectSpec, ik: ArmIk, plan: CatchPlan,
                              moved, [candidates[k].cell for k in members])
             for k, hit in zip(members, hits):
                 if hit:
-                    landed[k].append(draw)
+                    landed[k][draw] = getattr(hit, "tilt_deg", None)
     return landed
 
 
@@ -470,8 +499,9 @@ def _rehearse_modes(scenario: Scenario, obj: ObjectSpec, ik: ArmIk,
 def _rehearse(rehearsed: Scenario, obj: ObjectSpec, ik: ArmIk,
               plan: CatchPlan) -> Rehearsal:
     """`rehearse` in the one catch mode of `rehearsed`."""
-    in_target = np.array(_landings(rehearsed, obj, ik, plan, LATTICE)
-                         ).reshape(len(LATTICE_ROWS), len(LATTICE_COLUMNS))
+    in_target = np.array([bool(hit) for hit in _landings(
+        rehearsed, obj, ik, plan, LATTICE)]).reshape(
+            len(LATTICE_ROWS), len(LATTICE_COLUMNS))
     best = label_cell(in_target)
     cell = (None if best is None
             else (LATTICE_ROWS[best[0]], LATTICE_COLUMNS[best[1]]))
@@ -479,10 +509,11 @@ def _rehearse(rehearsed: Scenario, obj: ObjectSpec, ik: ArmIk,
 
 
 def _landings(rehearsed: Scenario, obj: ObjectSpec, ik: ArmIk,
-              plan: CatchPlan, cells) -> list[bool]:
-    """Whether the catch under `plan` lands in the target grasp at each of
-    `cells` (`catches`)."""
-    return [bool(r.success) for r in catches(rehearsed, obj, ik, plan, cells)]
+              plan: CatchPlan, cells) -> list[Landing]:
+    """The catch under `plan` at each of `cells` (`catches`): whether it
+    lands in the target grasp, and its tilt."""
+    return [Landing(bool(r.success), (r.achieved_grasp or {}).get("tilt_deg"))
+            for r in catches(rehearsed, obj, ik, plan, cells)]
 
 
 def catches(rehearsed: Scenario, obj: ObjectSpec, ik: ArmIk,
