@@ -47,17 +47,18 @@ then the earlier candidate: over 60 pairs it changed 24 picks, kept every
 hit and took the median tilt at a finer step from 9.7° to 9.05°,
 studies/landing_step/FINDINGS.md §18). Judged at a step twice finer than
 the half draw, 47 of the 48 picks that landed at half the steps landed, 3
-of the 8 that did not (studies/landing_step/FINDINGS.md §14). With `shifts` too, where no
-candidate holds (lands at half the steps and in 2 draws or more), the
-search widens: every place of `shifts` not rehearsed yet is rehearsed,
-and the MARGIN_CANDIDATES best cells not judged yet, over every lattice,
-are judged in the same draws (§15: it found a candidate that holds in 6
-of the 8 pairs with none; widening also where none lands in all 3 draws
-found none in 5 pairs tried, at 7-13 minutes each). With `later` too,
-where no place has a cell in the target, or none of their candidates
-holds, the flight's later catch moments (`later_moments`) are rehearsed
-in every mode at their own place, and their best cells judged: the throw
-may then catch the object at another moment of its fall.
+of the 8 that did not (studies/landing_step/FINDINGS.md §14).
+
+With `shifts` too, where no candidate holds (lands at half the steps and in
+2 draws or more), the search widens: every place of `shifts` not rehearsed
+yet is rehearsed, and the MARGIN_CANDIDATES best cells not judged yet, over
+every lattice, are judged in the same draws (§15: it found a candidate that
+holds in 6 of the 8 pairs with none; widening also where none lands in all
+3 draws found none in 5 pairs tried, at 7-13 minutes each). With `later`
+too, where no place has a cell in the target, or none of their candidates
+holds, the flight's later catch moments (`later_moments`) are rehearsed in
+every mode at their own place, and their best cells judged: the throw may
+then catch the object at another moment of its fall.
 
 The rehearsal never sees what judges it: a run judged under release noise
 has its own seeds (benchmarks/regrasp_targets.py --noise-level: the trial
