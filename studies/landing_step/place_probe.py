@@ -19,50 +19,24 @@ out/P_rehearsals.jsonl, and the changed pairs to out/P_changed.txt).
 import regrasp_drake  # noqa: F401, I001 (first: it pins NumPy's kernels)
 import argparse
 import json
-import multiprocessing
-
-import torch
 
 from regrasp_drake.learning import rehearsal as rh
-from regrasp_drake.learning.flight_predictor import FlightPredictor
-from regrasp_drake.paths import MODELS_DIR, OUT_DIR
-from regrasp_drake.planning.grasp import Target
-from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.station.scenario import (
-    load_scenario,
-    scenario_digest,
-    with_target,
-)
+from regrasp_drake.paths import OUT_DIR
 from regrasp_drake.throw_catch import shifted_along_axis
-from regrasp_drake.world.objects import resolve_object
+from x_rows import RESULTS, pair, run, setup, x_rows
 
-RESULTS = MODELS_DIR / "results" / "landing_step"
-X_ROWS = RESULTS / "X_eighth.jsonl"
 OUT = RESULTS / "place_probe.jsonl"
 CANDIDATES = RESULTS / "place_candidates.jsonl"
 SHIFT_MM = 2.0
 
 
-def pair(row: dict) -> tuple:
-    return (row["object"], row["target"]["kind"], row["target"]["offset_mm"])
-
-
 def probe(row: dict) -> dict:
     """`row`'s pick caught at its place ± SHIFT_MM."""
-    torch.set_num_threads(1)
-    t, pick = row["target"], row["rehearsal"]
-    scenario = with_target(load_scenario(), Target(t["kind"], t["offset_mm"]))
-    assert (scenario_digest(rh.rehearsal_scenario(scenario))
-            == row["rehearsal_digest"])
-    obj = resolve_object(name=row["object"])
-    ik = ArmIk(scenario.directives)
-    predictor = FlightPredictor.load(MODELS_DIR / "flight_predictor.json")
-    plan = predictor.plan(obj, scenario, ik)
+    pick = row["rehearsal"]
+    scenario, obj, ik, plan, later = setup(row)
     moment = pick.get("catch_point", 1)
     if moment > 1:
-        plan = next(p for p in rh.later_moments(
-            scenario, obj, ik, predictor.as_watched(obj, scenario))
-            if p.moment == moment)
+        plan = next(p for p in later if p.moment == moment)
     rehearsed = rh.rehearsal_scenario(rh.mode_scenario(scenario, pick["mode"])
                                       if pick["mode"] in rh.MODES
                                       else scenario)
@@ -76,7 +50,7 @@ def probe(row: dict) -> dict:
         r = rh.catches(rehearsed, obj, ik, moved, [tuple(pick["cell"])])[0]
         places[f"{mm:+g}"] = {"success": bool(r.success),
                               "grasp": r.achieved_grasp}
-    return {"object": row["object"], "target": t,
+    return {"object": row["object"], "target": row["target"],
             "pick": {k: pick.get(k, 1) for k in (
                 "cell", "mode", "palm_shift_mm", "catch_point")},
             "judged": row["success"], "places": places}
@@ -84,17 +58,8 @@ def probe(row: dict) -> dict:
 
 def probe_candidates(row: dict) -> dict:
     """Every margin candidate of `row` caught at its place ± SHIFT_MM."""
-    torch.set_num_threads(1)
-    t, rehearsal = row["target"], row["rehearsal"]
-    scenario = with_target(load_scenario(), Target(t["kind"], t["offset_mm"]))
-    assert (scenario_digest(rh.rehearsal_scenario(scenario))
-            == row["rehearsal_digest"])
-    obj = resolve_object(name=row["object"])
-    ik = ArmIk(scenario.directives)
-    predictor = FlightPredictor.load(MODELS_DIR / "flight_predictor.json")
-    plan = predictor.plan(obj, scenario, ik)
-    later = rh.later_moments(scenario, obj, ik,
-                             predictor.as_watched(obj, scenario))
+    rehearsal = row["rehearsal"]
+    scenario, obj, ik, plan, later = setup(row)
     groups = {}
     for k, c in enumerate(rehearsal["margin"]):
         groups.setdefault((c["mode"], c["palm_shift_mm"],
@@ -113,7 +78,7 @@ def probe_candidates(row: dict) -> dict:
                 tuple(rehearsal["margin"][k]["cell"]) for k in members])
             for k, r in zip(members, results):
                 places[k][draw] = bool(r.success)
-    return {"object": row["object"], "target": t,
+    return {"object": row["object"], "target": row["target"],
             "candidates": [c | {"places": p} for c, p in
                            zip(rehearsal["margin"], places)]}
 
@@ -163,25 +128,13 @@ def main() -> None:
     parser.add_argument("--candidates", action="store_true")
     parser.add_argument("--picks", action="store_true")
     args = parser.parse_args()
-    rows = {}
-    for line in X_ROWS.open():
-        row = json.loads(line)
-        rows[pair(row)] = row  # a later row of a pair replaces the earlier
+    rows = x_rows()
     if args.picks:
         return picks(rows)
-    out = CANDIDATES if args.candidates else OUT
-    function = probe_candidates if args.candidates else probe
-    done = ({pair(json.loads(line)) for line in out.open()}
-            if out.exists() else set())
-    todo = [r for k, r in rows.items() if k not in done
-            and r.get("rehearsal") and r["rehearsal"]["cell"] is not None]
-    print(f"{len(todo)} pairs", flush=True)
-    with (out.open("a") as f,
-          multiprocessing.get_context("fork").Pool(args.workers) as pool):
-        for probed in pool.imap_unordered(function, todo):
-            f.write(json.dumps(probed) + "\n")
-            f.flush()
-            print(probed["object"], probed["target"], flush=True)
+    run(probe_candidates if args.candidates else probe,
+        [r for r in rows.values()
+         if r.get("rehearsal") and r["rehearsal"]["cell"] is not None],
+        CANDIDATES if args.candidates else OUT, args.workers)
 
 
 if __name__ == "__main__":

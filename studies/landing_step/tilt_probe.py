@@ -18,26 +18,13 @@ finer step, one pair at a time.
 import regrasp_drake  # noqa: F401, I001 (first: it pins NumPy's kernels)
 import argparse
 import json
-import multiprocessing
 import statistics
 
-import torch
-
 from regrasp_drake.learning import rehearsal as rh
-from regrasp_drake.learning.flight_predictor import FlightPredictor
-from regrasp_drake.paths import MODELS_DIR, OUT_DIR
-from regrasp_drake.planning.grasp import Target
-from regrasp_drake.planning.ik import ArmIk
-from regrasp_drake.station.scenario import (
-    load_scenario,
-    scenario_digest,
-    with_target,
-)
+from regrasp_drake.paths import OUT_DIR
 from regrasp_drake.throw_catch import shifted_along_axis
-from regrasp_drake.world.objects import resolve_object
+from x_rows import RESULTS, pair, run, setup, x_rows
 
-RESULTS = MODELS_DIR / "results" / "landing_step"
-X_ROWS = RESULTS / "X_eighth.jsonl"
 OUT = RESULTS / "T_tilt_probe.jsonl"
 
 
@@ -46,24 +33,10 @@ def key(candidate: dict) -> tuple:
     return ("half" in candidate["landed_in"], len(candidate["landed_in"]))
 
 
-def pair(row: dict) -> tuple:
-    return (row["object"], row["target"]["kind"], row["target"]["offset_mm"])
-
-
 def probe(row: dict) -> dict:
     """The tied candidates of `row`'s rehearsal, each with its catches in
     MARGIN_DRAWS."""
-    torch.set_num_threads(1)
-    t = row["target"]
-    scenario = with_target(load_scenario(), Target(t["kind"], t["offset_mm"]))
-    assert (scenario_digest(rh.rehearsal_scenario(scenario))
-            == row["rehearsal_digest"])
-    obj = resolve_object(name=row["object"])
-    ik = ArmIk(scenario.directives)
-    predictor = FlightPredictor.load(MODELS_DIR / "flight_predictor.json")
-    plan = predictor.plan(obj, scenario, ik)
-    later = rh.later_moments(scenario, obj, ik,
-                             predictor.as_watched(obj, scenario))
+    scenario, obj, ik, plan, later = setup(row)
     margin = row["rehearsal"]["margin"]
     best = max(key(c) for c in margin)
     groups = {}
@@ -84,7 +57,7 @@ def probe(row: dict) -> dict:
                 c["draws"][draw] = {"success": bool(r.success),
                                     "grasp": r.achieved_grasp}
         tied += judged
-    return {"object": row["object"], "target": t,
+    return {"object": row["object"], "target": row["target"],
             "pick": {k: row["rehearsal"].get(k, 1) for k in (
                 "cell", "mode", "palm_shift_mm", "catch_point")},
             "judged": {"success": row["success"],
@@ -134,26 +107,14 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--picks", action="store_true")
     args = parser.parse_args()
-    rows = {}
-    for line in X_ROWS.open():
-        row = json.loads(line)
-        rows[pair(row)] = row  # a later row of a pair replaces the earlier
+    rows = x_rows()
     if args.picks:
         return picks(rows)
-    done = ({pair(json.loads(line)) for line in OUT.open()}
-            if OUT.exists() else set())
-    todo = [r for k, r in rows.items()
-            if k not in done and r.get("rehearsal")
-            and r["rehearsal"]["cell"] is not None
-            and sum(key(c) == max(map(key, r["rehearsal"]["margin"]))
-                    for c in r["rehearsal"]["margin"]) >= 2]
-    print(f"{len(todo)} pairs", flush=True)
-    with (OUT.open("a") as f,
-          multiprocessing.get_context("fork").Pool(args.workers) as pool):
-        for out in pool.imap_unordered(probe, todo):
-            f.write(json.dumps(out) + "\n")
-            f.flush()
-            print(out["object"], out["target"], flush=True)
+    run(probe, [r for r in rows.values() if r.get("rehearsal")
+                and r["rehearsal"]["cell"] is not None
+                and sum(key(c) == max(map(key, r["rehearsal"]["margin"]))
+                        for c in r["rehearsal"]["margin"]) >= 2],
+        OUT, args.workers)
 
 
 if __name__ == "__main__":
