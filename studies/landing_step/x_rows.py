@@ -1,6 +1,7 @@
 """What the probes of FINDINGS §18 share: X's rows (X_eighth.jsonl, one per
 pair), each pair's scenario, plans and rehearsal set up again as the
 rehearsal made them, and a resumable run of a probe over pairs."""
+import regrasp_drake  # noqa: F401, I001 (first: it pins NumPy's kernels)
 import json
 import multiprocessing
 
