@@ -184,6 +184,13 @@ class MarginTest(unittest.TestCase):
             return [lands(mode, draw, cell, plan) for cell in cells]
         return mock.patch.object(rehearsal_module, "_landings", run)
 
+    def margin_pick(self) -> Rehearsal:
+        """_with_margin at the one place and mode of `self.place`."""
+        return rehearsal_module._with_margin(
+            Scenario(), None, None, None,
+            dc.replace(self.place, places={0.0: self.place.counts}),
+            [self.place])
+
     def test_candidates(self):
         candidates = rehearsal_module._candidates(self.place, [self.place])
         self.assertEqual(len(candidates), MARGIN_CANDIDATES)
@@ -197,10 +204,7 @@ class MarginTest(unittest.TestCase):
         def lands(mode, draw, cell, plan):
             return cell == (3, 4) or (cell == (1, 1) and draw == "half")
         with self.landings(lands):
-            picked = rehearsal_module._with_margin(
-                Scenario(), None, None, None,
-                dc.replace(self.place, places={0.0: self.place.counts}),
-                [self.place])
+            picked = self.margin_pick()
         self.assertEqual((picked.mode, picked.cell), ("plain", (3, 4)))
         self.assertEqual(picked.picked_draws(), list(MARGIN_DRAWS))
         self.assertIsNone(self.plain.picked_draws())  # no margin rehearsed
@@ -216,10 +220,7 @@ class MarginTest(unittest.TestCase):
 
     def test_a_tie_keeps_the_pick(self):
         with self.landings(lambda mode, draw, cell, plan: True):
-            picked = rehearsal_module._with_margin(
-                Scenario(), None, None, None,
-                dc.replace(self.place, places={0.0: self.place.counts}),
-                [self.place])
+            picked = self.margin_pick()
         self.assertEqual((picked.mode, picked.cell), ("plain", (1, 1)))
 
     def test_a_tie_goes_to_the_least_tilted(self):
@@ -231,10 +232,7 @@ class MarginTest(unittest.TestCase):
             return rehearsal_module.Landing(
                 True, tilt[cell] + (1.0 if draw == "half" else 0.0))
         with self.landings(lands):
-            picked = rehearsal_module._with_margin(
-                Scenario(), None, None, None,
-                dc.replace(self.place, places={0.0: self.place.counts}),
-                [self.place])
+            picked = self.margin_pick()
         # (1, 4) and (3, 1) tie at 3.3°: the earlier
         self.assertEqual((picked.mode, picked.cell), ("plain", (1, 4)))
         self.assertEqual([m["tilt_deg"] for m in picked.margin],
@@ -250,10 +248,7 @@ class MarginTest(unittest.TestCase):
                     draw in ("half", "noise 1001") if cell == (3, 4) else
                     False)
         with self.landings(lands):
-            picked = rehearsal_module._with_margin(
-                Scenario(), None, None, None,
-                dc.replace(self.place, places={0.0: self.place.counts}),
-                [self.place])
+            picked = self.margin_pick()
         self.assertEqual(picked.cell, (3, 4))
         self.assertFalse(picked.fragile())
 

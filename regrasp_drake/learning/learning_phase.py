@@ -462,7 +462,7 @@ class _Phase:
                             "the steps and 2 draws)")
             if self.rehearsal.cell is None:
                 self.refuse_or_warn()
-            if self.rehearsal.cell is not None:
+            else:
                 first, self.start_chooser = self.rehearsal.cell, "rehearsal"
                 self.catch_scenario = mode_scenario(self.scenario,
                                                     self.rehearsal.mode)

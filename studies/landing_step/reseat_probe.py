@@ -10,6 +10,7 @@ judge's steps through benchmarks/regrasp_targets.py.
         OBJECT:KIND:MM ...
 """
 import regrasp_drake  # noqa: F401, I001 (first: it pins NumPy's kernels)
+import argparse
 import sys
 from pathlib import Path
 
@@ -66,16 +67,27 @@ def patch(dwell_s: float, fraction: float) -> None:
 
 
 def main() -> None:
-    out, dwell_s, fraction, *pairs = sys.argv[1:]
-    patch(float(dwell_s), float(fraction))
-    for pair in pairs:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("out")
+    parser.add_argument("dwell_s", type=float)
+    parser.add_argument("fraction", type=float)
+    parser.add_argument("pairs", nargs="+", metavar="OBJECT:KIND:MM")
+    args = parser.parse_args()
+    if args.dwell_s < 0 or not 0 < args.fraction <= 1:
+        parser.error(f"DWELL, FRAC: got {args.dwell_s}, {args.fraction}, "
+                     "expected DWELL >= 0 and 0 < FRAC <= 1")
+    for pair in args.pairs:
+        if pair.count(":") != 2:
+            parser.error(f"pair: got {pair!r}, expected OBJECT:KIND:MM")
+    patch(args.dwell_s, args.fraction)
+    for pair in args.pairs:
         name, kind, mm = pair.split(":")
         regrasp_targets.main([
             "--objects", name, "--targets", f"{kind}:{mm}",
             "--modes", "first-throw", "--max-throws", "1", "--rehearse",
             "--rehearsal-from",
             str(MODELS_DIR / "results" / "landing_step" / "X_eighth.jsonl"),
-            "--scenario-text", FINER, "--out", out])
+            "--scenario-text", FINER, "--out", args.out])
 
 
 if __name__ == "__main__":
